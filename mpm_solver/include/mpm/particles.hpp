@@ -1,0 +1,46 @@
+#pragma once
+// Material points as a structure of arrays: one contiguous array per field.
+#include <cstdint>
+#include <vector>
+
+#include "mpm/types.hpp"
+
+namespace mpm {
+
+template <int D>
+struct Particles {
+  std::vector<Vec<D>> x;        ///< position, m
+  std::vector<Vec<D>> v;        ///< velocity, m/s
+  std::vector<Mat<D>> C;        ///< APIC affine velocity (velocity gradient estimate), 1/s
+  std::vector<Mat<D>> stress;   ///< Cauchy stress, Pa (tension positive)
+  std::vector<Mat<D>> be;       ///< elastic left Cauchy-Green tensor (Drucker-Prager state)
+  std::vector<double> mass;     ///< kg (per unit depth in 2D: kg/m)
+  std::vector<double> volume0;  ///< initial volume, m^3 (m^2 in 2D)
+  std::vector<double> J;        ///< volume ratio V/V0
+  std::vector<double> plastic_strain;  ///< accumulated equivalent plastic shear strain
+  std::vector<std::uint16_t> material; ///< index into the scene's materials
+
+  std::size_t size() const { return x.size(); }
+  double volume(std::size_t p) const { return volume0[p] * J[p]; }
+
+  /// Appends a point at rest in its reference state.
+  void add(const Vec<D>& pos, const Vec<D>& vel, double m, double vol, std::uint16_t mat) {
+    x.push_back(pos);
+    v.push_back(vel);
+    C.push_back(Mat<D>::Zero());
+    stress.push_back(Mat<D>::Zero());
+    be.push_back(Mat<D>::Identity());
+    mass.push_back(m);
+    volume0.push_back(vol);
+    J.push_back(1.0);
+    plastic_strain.push_back(0.0);
+    material.push_back(mat);
+  }
+
+  /// Bytes held per point (for the memory benchmark).
+  static constexpr std::size_t bytes_per_point() {
+    return 2 * sizeof(Vec<D>) + 3 * sizeof(Mat<D>) + 4 * sizeof(double) + sizeof(std::uint16_t);
+  }
+};
+
+}  // namespace mpm
