@@ -1,1 +1,128 @@
-// placeholder, being written
+#include "mpm/materials.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <sstream>
+
+namespace mpm {
+
+namespace {
+void require(bool ok, const Material& m, const std::string& what) {
+  if (!ok) throw UserError("material \"" + m.name + "\": " + what);
+}
+}  // namespace
+
+MaterialModel::MaterialModel(const Material& m) : kind(m.model), density(m.density), mu_i(m.mu_i) {
+  const double E = m.model == ModelKind::DruckerPrager ? m.drucker_prager.youngs_modulus : m.mu_i.youngs_modulus;
+  const double nu = m.model == ModelKind::DruckerPrager ? m.drucker_prager.poisson_ratio : m.mu_i.poisson_ratio;
+  require(density > 0, m, "density must be > 0");
+  require(E > 0, m, "youngs_modulus must be > 0");
+  require(nu >= 0 && nu < 0.5, m, "poisson_ratio must be in [0, 0.5)");
+  shear_modulus = E / (2.0 * (1.0 + nu));
+  lame_lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+  if (kind == ModelKind::DruckerPrager) {
+    const double phi = m.drucker_prager.friction_angle_deg;
+    require(phi > 0 && phi < 90, m, "friction_angle must be in (0, 90) degrees");
+    friction_angle_rad = phi * M_PI / 180.0;
+  } else {
+    require(mu_i.mu_s > 0 && mu_i.mu_2 > mu_i.mu_s, m, "mu(I) needs 0 < mu_s < mu_2");
+    require(mu_i.I0 > 0 && mu_i.grain_diameter > 0 && mu_i.grain_density > 0, m,
+            "I0, grain_diameter and grain_density must be > 0");
+    require(mu_i.critical_density > 0 && mu_i.critical_density <= mu_i.grain_density, m,
+            "critical_density must be in (0, grain_density]");
+  }
+}
+
+template <int D>
+void update_drucker_prager(const MaterialModel& m, const Mat<D>& f, Mat<D>& be, Mat<D>& stress,
+                           double& plastic_strain) {
+  using V = Vec<D>;
+  const Mat<D> trial = f * be * f.transpose();
+  Eigen::SelfAdjointEigenSolver<Mat<D>> eig;
+  eig.computeDirect(trial);
+  const V lambda_sq = eig.eigenvalues().cwiseMax(1e-300);  // squared principal stretches
+  V eps = 0.5 * lambda_sq.array().log().matrix();          // principal Hencky strains
+  const double tr = eps.sum();
+  const V dev = eps.array() - tr / D;
+  const double dev_norm = dev.norm();
+  const double G = m.shear_modulus, lam = m.lame_lambda;
+
+  if (tr >= 0.0) {
+    // Dilation: grains lose contact; cohesionless material carries no stress.
+    plastic_strain += std::sqrt(2.0) * dev_norm;
+    be.setIdentity();
+    stress.setZero();
+    return;
+  }
+  // Yield: 2G |dev eps| <= alpha * p, p = -(D lam + 2G)/D * tr eps.
+  const double alpha = m.cone_slope<D>();
+  const double delta_gamma = dev_norm + alpha * (D * lam + 2.0 * G) / (2.0 * G * D) * tr;
+  if (delta_gamma > 0.0) {
+    eps -= (delta_gamma / dev_norm) * dev;  // dev_norm > 0 whenever delta_gamma > 0 here
+    plastic_strain += std::sqrt(2.0) * delta_gamma;
+  }
+  const double tr_new = eps.sum();
+  const double Je = std::exp(tr_new);
+  const V kirchhoff = 2.0 * G * eps.array() + lam * tr_new;
+  const auto& Q = eig.eigenvectors();
+  be = Q * (2.0 * eps).array().exp().matrix().asDiagonal() * Q.transpose();
+  stress = Q * (kirchhoff / Je).asDiagonal() * Q.transpose();
+}
+
+template <int D>
+void update_mu_i(const MaterialModel& m, const Mat<D>& L, double dt, double density, Mat<D>& stress,
+                 double& plastic_strain) {
+  const auto& p = m.mu_i;
+  if (density < p.critical_density) {
+    stress.setZero();  // disconnected: grains no longer touch
+    return;
+  }
+  const Mat<D> Drate = 0.5 * (L + L.transpose());
+  const Mat<D> W = 0.5 * (L - L.transpose());
+  const Mat<D> I = Mat<D>::Identity();
+  const double G = m.shear_modulus, lam = m.lame_lambda;
+  // Elastic trial with the Jaumann rate: sigma_dot = C:D + W sigma - sigma W.
+  const Mat<D> trial = stress + dt * (2.0 * G * Drate + lam * Drate.trace() * I + W * stress - stress * W);
+  const double pressure = -trial.trace() / D;
+  if (pressure <= 0.0) {
+    stress.setZero();  // no tension
+    return;
+  }
+  const Mat<D> dev = trial + pressure * I;
+  const double tau_trial = dev.norm() / std::sqrt(2.0);
+  const double excess = tau_trial - p.mu_s * pressure;
+  if (excess <= 0.0) {
+    stress = trial;
+    return;
+  }
+  // Plastic flow: find u = tau_trial - tau = G dt gammadot_p >= 0 such that
+  // tau / p = mu(I), I = gammadot_p d / sqrt(p / rho_s). With beta = I per unit u,
+  // this is beta u^2 + B u - excess I0 = 0, B = I0 + beta ((mu_2 - mu_s) p - excess).
+  const double beta = p.grain_diameter * std::sqrt(p.grain_density / pressure) / (G * dt);
+  const double B = p.I0 + beta * ((p.mu_2 - p.mu_s) * pressure - excess);
+  const double disc = std::sqrt(B * B + 4.0 * beta * excess * p.I0);
+  const double u = B >= 0.0 ? 2.0 * excess * p.I0 / (B + disc) : (disc - B) / (2.0 * beta);
+  const double tau = std::max(tau_trial - u, 0.0);
+  stress = dev * (tau / tau_trial) - pressure * I;
+  plastic_strain += u / G;  // gammadot_p * dt
+}
+
+template <int D>
+Mat<D> elastic_state_for_stress(const MaterialModel& m, const Mat<D>& stress) {
+  // Small-strain inverse of tau = 2G eps + lam tr(eps) I, taking tau ~ sigma.
+  const double G = m.shear_modulus, lam = m.lame_lambda;
+  const double tr_eps = stress.trace() / (D * lam + 2.0 * G);
+  const Mat<D> eps = (stress - lam * tr_eps * Mat<D>::Identity()) / (2.0 * G);
+  Eigen::SelfAdjointEigenSolver<Mat<D>> eig(eps);
+  return eig.eigenvectors() * (2.0 * eig.eigenvalues()).array().exp().matrix().asDiagonal() *
+         eig.eigenvectors().transpose();
+}
+
+template void update_drucker_prager<2>(const MaterialModel&, const Mat<2>&, Mat<2>&, Mat<2>&, double&);
+template void update_drucker_prager<3>(const MaterialModel&, const Mat<3>&, Mat<3>&, Mat<3>&, double&);
+template void update_mu_i<2>(const MaterialModel&, const Mat<2>&, double, double, Mat<2>&, double&);
+template void update_mu_i<3>(const MaterialModel&, const Mat<3>&, double, double, Mat<3>&, double&);
+template Mat<2> elastic_state_for_stress<2>(const MaterialModel&, const Mat<2>&);
+template Mat<3> elastic_state_for_stress<3>(const MaterialModel&, const Mat<3>&);
+
+}  // namespace mpm

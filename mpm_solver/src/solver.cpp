@@ -1,1 +1,490 @@
-// placeholder, being written
+#include "mpm/solver.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <sstream>
+
+#include "coupler/bspline.hpp"
+#include "mpm/output.hpp"
+
+namespace mpm {
+
+namespace {
+
+template <int D>
+Vec<D> take(const Vec3& v) {
+  return Eigen::Map<const Eigen::Vector3d>(v.data()).head<D>();
+}
+
+std::string format_vec(const double* x, int n) {
+  std::ostringstream s;
+  s << '(';
+  for (int a = 0; a < n; ++a) s << (a ? ", " : "") << x[a];
+  s << ')';
+  return s.str();
+}
+
+/// Calls f(flat node index, weight, node offset from the point in cell units)
+/// for the 3^D nodes of a quadratic stencil.
+template <int D, class F>
+inline void for_each_stencil_node(const coupler::QuadraticStencil<D>& s, const Grid<D>& g, F&& f) {
+  const std::size_t base = g.index(s.base);
+  if constexpr (D == 2) {
+    const std::size_t sx = static_cast<std::size_t>(g.dims[1]);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        f(base + i * sx + j, s.w[0][i] * s.w[1][j], Vec<2>(i - s.frac[0], j - s.frac[1]));
+  } else {
+    const std::size_t sy = static_cast<std::size_t>(g.dims[2]);
+    const std::size_t sx = sy * static_cast<std::size_t>(g.dims[1]);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        const double wij = s.w[0][i] * s.w[1][j];
+        for (int k = 0; k < 3; ++k)
+          f(base + i * sx + j * sy + k, wij * s.w[2][k], Vec<3>(i - s.frac[0], j - s.frac[1], k - s.frac[2]));
+      }
+  }
+}
+
+/// Flat index span [first, last] of a stencil's nodes.
+template <int D>
+std::size_t stencil_span(const Grid<D>& g) {
+  std::size_t span = 0;
+  for (int a = 0; a < D; ++a) span += 2 * g.stride(a);
+  return span;
+}
+
+}  // namespace
+
+template <int D>
+Solver<D>::Solver(const Scene& scene) : scene_(scene) {
+  if (scene.dimension != D)
+    throw UserError("internal: scene dimension " + std::to_string(scene.dimension) + " given to a " +
+                    std::to_string(D) + "D solver");
+  if (!(scene.grid.cell_size > 0)) throw UserError("[grid] cell_size must be > 0");
+  if (scene.materials.empty()) throw UserError("the scene defines no [[material]]");
+  if (scene.blocks.empty()) throw UserError("the scene defines no [[block]] of material");
+  const Vec<D> lower = take<D>(scene.grid.lower), upper = take<D>(scene.grid.upper);
+  if (!((upper - lower).array() > scene.grid.cell_size).all())
+    throw UserError("[grid] upper must exceed lower by at least one cell_size on every axis");
+  const double cells = ((upper - lower) / scene.grid.cell_size).array().ceil().prod();
+  if (cells > 2e9) throw UserError("[grid] has " + std::to_string(cells) + " cells; increase cell_size");
+  grid_ = Grid<D>(lower, upper, scene.grid.cell_size);
+  gravity_ = take<D>(scene.gravity);
+
+  for (const auto& m : scene.materials) materials_.emplace_back(m);
+  for (const auto& b : scene.blocks) seed_block(b);
+  if (points_.size() == 0) throw UserError("the material blocks contain no points; check their sizes against cell_size");
+
+  // Domain faces act as walls of the chosen kind.
+  for (int a = 0; a < D; ++a)
+    for (int side = 0; side < 2; ++side) {
+      Boundary wall;
+      wall.kind = BoundaryKind::Plane;
+      wall.contact = scene.grid.walls;
+      wall.friction = scene.grid.wall_friction;
+      wall.point = scene.grid.lower;
+      if (side) wall.point = scene.grid.upper;
+      wall.normal = {0, 0, 0};
+      wall.normal[a] = side ? -1.0 : 1.0;
+      RigidBoundary<D> rb;
+      rb.spec = wall;
+      boundaries_.push_back(rb);
+    }
+  for (const auto& b : scene.boundaries) {
+    RigidBoundary<D> rb;
+    rb.spec = b;
+    boundaries_.push_back(rb);
+  }
+  update_rigid_boundaries();
+
+  for (std::size_t p = 0; p < points_.size(); ++p) {
+    max_wave_speed_ = std::max(max_wave_speed_, materials_[points_.material[p]].wave_speed());
+    max_speed_ = std::max(max_speed_, points_.v[p].norm());
+  }
+  thread_grids_.resize(static_cast<std::size_t>(omp_get_max_threads()));
+  for (std::size_t t = 1; t < thread_grids_.size(); ++t) {
+    thread_grids_[t].mass.assign(grid_.num_nodes(), 0.0);
+    thread_grids_[t].momentum.assign(grid_.num_nodes(), Vec<D>::Zero());
+  }
+  sort_points_by_cell();
+}
+
+template <int D>
+void Solver<D>::seed_block(const Block& block) {
+  std::uint16_t mat = 0;
+  while (mat < scene_.materials.size() && scene_.materials[mat].name != block.material) ++mat;
+  if (mat == scene_.materials.size()) throw UserError("block uses undefined material \"" + block.material + "\"");
+  const MaterialModel& model = materials_[mat];
+
+  int per_axis = 2;
+  if (block.points_per_cell > 0) {
+    per_axis = static_cast<int>(std::lround(std::pow(block.points_per_cell, 1.0 / D)));
+    if (static_cast<int>(std::lround(std::pow(per_axis, D))) != block.points_per_cell)
+      throw UserError("points_per_cell = " + std::to_string(block.points_per_cell) + " is not a perfect " +
+                      (D == 2 ? "square" : "cube"));
+  }
+  const double spacing = grid_.dx / per_axis;
+  const double point_volume = std::pow(spacing, D);
+
+  Vec<D> lo, hi;
+  if (block.shape == Shape::Box) {
+    lo = take<D>(block.lower);
+    hi = take<D>(block.upper);
+  } else {
+    const Vec<D> c = take<D>(block.center);
+    lo = c.array() - block.radius;
+    hi = c.array() + block.radius;
+    if (D == 3) {
+      lo[block.axis] = c[block.axis] - 0.5 * block.height;
+      hi[block.axis] = c[block.axis] + 0.5 * block.height;
+    }
+  }
+  auto inside = [&](const Vec<D>& x) {
+    if (block.shape == Shape::Box) return (x.array() >= lo.array()).all() && (x.array() < hi.array()).all();
+    Vec<D> r = x - take<D>(block.center);
+    if (D == 3) {
+      if (std::abs(r[block.axis]) > 0.5 * block.height) return false;
+      r[block.axis] = 0;
+    }
+    return r.squaredNorm() < block.radius * block.radius;
+  };
+  // Lattice aligned with the grid cells: per_axis points per cell and axis.
+  IVec<D> first, count;
+  for (int a = 0; a < D; ++a) {
+    first[a] = static_cast<int>(std::floor((lo[a] - grid_.domain_lower[a]) / spacing));
+    count[a] = static_cast<int>(std::ceil((hi[a] - grid_.domain_lower[a]) / spacing)) - first[a];
+  }
+  const std::size_t before = points_.size();
+  const Vec<D> v0 = take<D>(block.velocity);
+  const long total = count.template cast<long>().prod();
+  std::vector<Vec<D>> positions;
+  for (long n = 0; n < total; ++n) {
+    long rest = n;
+    Vec<D> x;
+    for (int a = D - 1; a >= 0; --a) {
+      const long k = first[a] + rest % count[a];
+      rest /= count[a];
+      x[a] = grid_.domain_lower[a] + (k + 0.5) * spacing;
+    }
+    if (inside(x) && grid_.in_domain(x)) points_.add(x, v0, model.density * point_volume, point_volume, mat);
+  }
+  if (block.geostatic && points_.size() > before) {
+    // Lithostatic start: sigma_vv = -rho g depth along the last axis, lateral k0 times that.
+    double top = -std::numeric_limits<double>::infinity();
+    for (std::size_t p = before; p < points_.size(); ++p) top = std::max(top, points_.x[p][D - 1]);
+    top += 0.5 * spacing;
+    const double g = std::abs(gravity_[D - 1]);
+    for (std::size_t p = before; p < points_.size(); ++p) {
+      const double sv = -model.density * g * (top - points_.x[p][D - 1]);
+      Mat<D> s = Mat<D>::Identity() * (block.k0 * sv);
+      s(D - 1, D - 1) = sv;
+      points_.stress[p] = s;
+      if (model.kind == ModelKind::DruckerPrager) points_.be[p] = elastic_state_for_stress<D>(model, s);
+    }
+  }
+}
+
+template <int D>
+void Solver<D>::update_rigid_boundaries() {
+  for (auto& b : boundaries_) {
+    b.velocity = take<D>(b.spec.velocity);
+    const Vec<D> shift = b.velocity * time_;
+    b.point = take<D>(b.spec.point) + shift;
+    b.normal = take<D>(b.spec.normal).normalized();
+    b.lower = take<D>(b.spec.lower) + shift;
+    b.upper = take<D>(b.spec.upper) + shift;
+  }
+}
+
+template <int D>
+double Solver<D>::stable_dt() const {
+  double boundary_speed = 0;
+  for (const auto& b : boundaries_) boundary_speed = std::max(boundary_speed, b.velocity.norm());
+  return scene_.time.cfl * grid_.dx / (max_wave_speed_ + std::max(max_speed_, boundary_speed));
+}
+
+template <int D>
+double Solver<D>::next_dt() const {
+  const double stable = stable_dt();
+  const double fixed = scene_.time.fixed_dt;
+  if (fixed <= 0) return stable;
+  if (fixed > stable) {
+    std::ostringstream msg;
+    msg << "[time] dt = " << fixed << " s is above the stable step " << stable << " s at t = " << time_
+        << " s (cfl * dx / (c + |v|max) with wave speed c = " << max_wave_speed_ << " m/s, |v|max = " << max_speed_
+        << " m/s); set [time] dt <= " << stable << " or remove dt to use the automatic step";
+    throw UserError(msg.str());
+  }
+  return fixed;
+}
+
+template <int D>
+void Solver<D>::step(double dt) {
+  p2g(dt);
+  grid_update(dt);
+  g2p(dt);
+  time_ += dt;
+  ++steps_;
+  update_rigid_boundaries();
+}
+
+template <int D>
+void Solver<D>::p2g(double dt) {
+  const std::size_t n_points = points_.size();
+  const double dx = grid_.dx;
+  const double stress_scale = dt * coupler::kQuadraticInverseInertia / (dx * dx);
+  const std::size_t span = stencil_span(grid_);
+  const int n_threads = static_cast<int>(thread_grids_.size());
+
+  // Clear what the last step touched.
+  if (!touched_lo_.empty()) {
+    const std::size_t lo = touched_lo_[0], hi = touched_hi_[0];
+    std::fill(grid_.mass.begin() + lo, grid_.mass.begin() + hi, 0.0);
+    std::fill(grid_.momentum.begin() + lo, grid_.momentum.begin() + hi, Vec<D>::Zero());
+  }
+  touched_lo_.assign(n_threads + 1, grid_.num_nodes());
+  touched_hi_.assign(n_threads + 1, 0);
+
+#pragma omp parallel num_threads(n_threads)
+  {
+    const int t = omp_get_thread_num();
+    ThreadGrid& tg = thread_grids_[t];
+    double* mass = t == 0 ? grid_.mass.data() : tg.mass.data();
+    Vec<D>* momentum = t == 0 ? grid_.momentum.data() : tg.momentum.data();
+    if (t > 0) {
+      std::fill(mass + tg.lo, mass + tg.hi, 0.0);
+      std::fill(momentum + tg.lo, momentum + tg.hi, Vec<D>::Zero());
+    }
+    const std::size_t begin = n_points * t / n_threads, end = n_points * (t + 1) / n_threads;
+    std::size_t lo = grid_.num_nodes(), hi = 0;
+    for (std::size_t p = begin; p < end; ++p) {
+      const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
+      const double m = points_.mass[p];
+      // MLS-MPM: the stress force and the APIC affine momentum share one matrix.
+      const Mat<D> affine = m * points_.C[p] - (stress_scale * points_.volume(p)) * points_.stress[p];
+      const Vec<D> mv = m * points_.v[p];
+      const std::size_t base = grid_.index(st.base);
+      lo = std::min(lo, base);
+      hi = std::max(hi, base + span + 1);
+      for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
+        mass[k] += w * m;
+        momentum[k] += w * (mv + affine * (dx * offset));
+      });
+    }
+    tg.lo = lo;
+    tg.hi = std::max(lo, hi);
+    touched_lo_[t] = tg.lo;
+    touched_hi_[t] = tg.hi;
+  }
+  std::size_t lo = grid_.num_nodes(), hi = 0;
+  for (int t = 0; t < n_threads; ++t) {
+    lo = std::min(lo, touched_lo_[t]);
+    hi = std::max(hi, touched_hi_[t]);
+  }
+  hi = std::max(lo, hi);
+  // Sum the other threads' contributions into the main grid in thread order
+  // (fixed order: results do not depend on scheduling).
+  if (n_threads > 1) {
+#pragma omp parallel for schedule(static) num_threads(n_threads)
+    for (std::size_t k = lo; k < hi; ++k)
+      for (int t = 1; t < n_threads; ++t) {
+        const ThreadGrid& tg = thread_grids_[t];
+        if (k >= tg.lo && k < tg.hi) {
+          grid_.mass[k] += tg.mass[k];
+          grid_.momentum[k] += tg.momentum[k];
+        }
+      }
+  }
+  touched_lo_.assign(1, lo);
+  touched_hi_.assign(1, hi);
+}
+
+template <int D>
+void Solver<D>::apply_boundaries(std::size_t node, Vec<D>& v) const {
+  const Vec<D> x = grid_.node_position(grid_.node_of(node));
+  auto contact = [&v](const RigidBoundary<D>& b, const Vec<D>& n) {
+    const Vec<D> vr = v - b.velocity;
+    const double vn = vr.dot(n);
+    if (b.spec.contact == Contact::Sticky) {
+      v = b.velocity;
+      return;
+    }
+    if (b.spec.separating && vn >= 0.0) return;
+    Vec<D> vt = vr - vn * n;
+    if (b.spec.contact == Contact::Friction) {
+      const double vt_norm = vt.norm();
+      if (vt_norm > 0) vt *= std::max(0.0, 1.0 - b.spec.friction * std::abs(vn) / vt_norm);
+    }
+    v = b.velocity + vt;
+  };
+  for (const auto& b : boundaries_) {
+    if (b.spec.kind == BoundaryKind::Plane) {
+      if ((x - b.point).dot(b.normal) <= 0.0) contact(b, b.normal);
+    } else if (b.spec.inside) {
+      for (int a = 0; a < D; ++a) {
+        if (x[a] <= b.lower[a]) contact(b, Vec<D>::Unit(a));
+        if (x[a] >= b.upper[a]) contact(b, -Vec<D>::Unit(a));
+      }
+    } else if ((x.array() > b.lower.array()).all() && (x.array() < b.upper.array()).all()) {
+      // Obstacle: push out through the nearest face.
+      int axis = 0;
+      double best = std::numeric_limits<double>::infinity(), sign = 1;
+      for (int a = 0; a < D; ++a) {
+        if (x[a] - b.lower[a] < best) best = x[a] - b.lower[a], axis = a, sign = -1;
+        if (b.upper[a] - x[a] < best) best = b.upper[a] - x[a], axis = a, sign = 1;
+      }
+      contact(b, sign * Vec<D>::Unit(axis));
+    }
+  }
+}
+
+template <int D>
+void Solver<D>::grid_update(double dt) {
+  const std::size_t lo = touched_lo_[0], hi = touched_hi_[0];
+  const double keep = std::max(0.0, 1.0 - scene_.time.damping * dt);
+#pragma omp parallel for schedule(static)
+  for (std::size_t k = lo; k < hi; ++k) {
+    const double m = grid_.mass[k];
+    if (m <= 0.0) {
+      grid_.momentum[k].setZero();
+      continue;
+    }
+    Vec<D> v = (grid_.momentum[k] / m + dt * gravity_) * keep;
+    apply_boundaries(k, v);
+    grid_.momentum[k] = v;  // from here on the array holds node velocities
+  }
+}
+
+template <int D>
+void Solver<D>::g2p(double dt) {
+  const std::size_t n_points = points_.size();
+  const double dx = grid_.dx;
+  const double inv_inertia = coupler::kQuadraticInverseInertia / (dx * dx);
+  // Points must keep their stencil on the grid: allow 1.5 cells past the domain.
+  const Vec<D> lo = grid_.domain_lower.array() - 1.5 * dx, hi = grid_.domain_upper.array() + 1.5 * dx;
+  const std::size_t none = std::numeric_limits<std::size_t>::max();
+  std::size_t first_bad = none;
+  double max_speed_sq = 0;
+#pragma omp parallel for schedule(static) reduction(max : max_speed_sq) reduction(min : first_bad)
+  for (std::size_t p = 0; p < n_points; ++p) {
+    const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
+    Vec<D> v = Vec<D>::Zero();
+    Mat<D> B = Mat<D>::Zero();
+    for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
+      const Vec<D>& vi = grid_.momentum[k];
+      v += w * vi;
+      B += (w * dx) * vi * offset.transpose();
+    });
+    const Mat<D> C = inv_inertia * B;
+    points_.v[p] = v;
+    points_.C[p] = C;
+    points_.x[p] += dt * v;
+    const Mat<D> f = Mat<D>::Identity() + dt * C;
+    points_.J[p] *= f.determinant();
+    const MaterialModel& model = materials_[points_.material[p]];
+    if (model.kind == ModelKind::DruckerPrager)
+      update_drucker_prager<D>(model, f, points_.be[p], points_.stress[p], points_.plastic_strain[p]);
+    else
+      update_mu_i<D>(model, C, dt, points_.mass[p] / points_.volume(p), points_.stress[p], points_.plastic_strain[p]);
+    const double speed_sq = v.squaredNorm();
+    max_speed_sq = std::max(max_speed_sq, speed_sq);
+    const bool ok = std::isfinite(speed_sq) && std::isfinite(points_.stress[p].sum()) && points_.J[p] > 0 &&
+                    (points_.x[p].array() > lo.array()).all() && (points_.x[p].array() < hi.array()).all();
+    if (!ok) first_bad = std::min(first_bad, p);
+  }
+  max_speed_ = std::sqrt(max_speed_sq);
+  if (first_bad != none) {
+    const auto& x = points_.x[first_bad];
+    std::ostringstream msg;
+    if (!std::isfinite(points_.v[first_bad].squaredNorm()) || !std::isfinite(points_.stress[first_bad].sum()) ||
+        !(points_.J[first_bad] > 0))
+      msg << "the MPM state became non-finite or inverted at step " << steps_ + 1 << " (t = " << time_ + dt
+          << " s, point " << first_bad << "); the time step is too large for this material: lower [time] cfl or dt";
+    else
+      msg << "material point " << first_bad << " left the grid domain at t = " << time_ + dt
+          << " s, position " << format_vec(x.data(), D) << "; the domain is "
+          << format_vec(grid_.domain_lower.data(), D) << " to " << format_vec(grid_.domain_upper.data(), D)
+          << ": enlarge [grid] lower/upper or add a boundary that holds the material";
+    throw UserError(msg.str());
+  }
+}
+
+template <int D>
+void Solver<D>::sort_points_by_cell() {
+  const std::size_t n = points_.size();
+  std::vector<std::size_t> key(n);
+  for (std::size_t p = 0; p < n; ++p) key[p] = grid_.index(coupler::QuadraticStencil<D>(grid_.to_cell_units(points_.x[p])).base);
+  std::vector<std::size_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return key[a] < key[b]; });
+  auto permute = [&](auto& field) {
+    std::remove_reference_t<decltype(field)> sorted(n);
+    for (std::size_t i = 0; i < n; ++i) sorted[i] = field[order[i]];
+    field.swap(sorted);
+  };
+  permute(points_.x);
+  permute(points_.v);
+  permute(points_.C);
+  permute(points_.stress);
+  permute(points_.be);
+  permute(points_.mass);
+  permute(points_.volume0);
+  permute(points_.J);
+  permute(points_.plastic_strain);
+  permute(points_.material);
+}
+
+template <int D>
+void run(Solver<D>& solver, bool write_output, const std::function<void(const RunProgress&)>& progress) {
+  using Clock = std::chrono::steady_clock;
+  const Scene& scene = solver.scene();
+  const double end = scene.time.end_time;
+  const double interval = scene.output.interval > 0 ? scene.output.interval : end;
+  std::unique_ptr<SnapshotWriter<D>> writer;
+  if (write_output) {
+    writer = std::make_unique<SnapshotWriter<D>>(scene.output.directory, scene);
+    writer->write(solver.points(), solver.grid(), solver.time(), solver.steps());
+  }
+  const auto start = Clock::now();
+  auto last_report = start;
+  long frame = 1;
+  double next_output = std::min(interval, end);
+  const double tiny = 1e-12 * std::max(1.0, end);
+  constexpr int kSortEvery = 50;
+  while (solver.time() < end - tiny) {
+    double dt = solver.next_dt();
+    dt = std::min(dt, next_output - solver.time());
+    solver.step(dt);
+    if (solver.steps() % kSortEvery == 0) solver.sort_points_by_cell();
+    if (solver.time() >= next_output - tiny) {
+      if (writer) writer->write(solver.points(), solver.grid(), solver.time(), solver.steps());
+      ++frame;
+      next_output = std::min(end, frame * interval);
+    }
+    const auto now = Clock::now();
+    const double since = std::chrono::duration<double>(now - last_report).count();
+    if (progress && scene.output.progress_interval > 0 && since >= scene.output.progress_interval) {
+      const double wall = std::chrono::duration<double>(now - start).count();
+      progress({solver.steps(), solver.time(), dt, wall, solver.steps() * double(solver.points().size()) / wall});
+      last_report = now;
+    }
+  }
+  if (progress) {
+    const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+    progress({solver.steps(), solver.time(), 0.0, wall, solver.steps() * double(solver.points().size()) / wall});
+  }
+}
+
+template class Solver<2>;
+template class Solver<3>;
+template void run<2>(Solver<2>&, bool, const std::function<void(const RunProgress&)>&);
+template void run<3>(Solver<3>&, bool, const std::function<void(const RunProgress&)>&);
+
+}  // namespace mpm

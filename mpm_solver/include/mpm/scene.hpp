@@ -92,6 +92,9 @@ struct TimeSpec {
   double cfl = 0.5;       ///< dt = cfl * dx / (c + |v|max)
   /// >0: a fixed step the user chose; refused if above the stable step.
   double fixed_dt = 0.0;
+  /// Viscous damping rate of grid velocities, 1/s (v *= 1 - damping*dt).
+  /// For settling quasi-static states only; 0 for dynamics.
+  double damping = 0.0;
 };
 
 struct OutputSpec {

@@ -1,0 +1,58 @@
+#pragma once
+// Constitutive updates. Each acts on one point, given its velocity gradient
+// over the step, and leaves its Cauchy stress for the next P2G.
+#include <cmath>
+
+#include "mpm/scene.hpp"
+#include "mpm/types.hpp"
+
+namespace mpm {
+
+/// A material with its derived constants, ready for the per-point updates.
+struct MaterialModel {
+  ModelKind kind = ModelKind::DruckerPrager;
+  double density = 0;  ///< bulk density of the continuum
+  double shear_modulus = 0, lame_lambda = 0;
+  double friction_angle_rad = 0;  ///< Drucker-Prager
+  MuIParams mu_i;
+
+  /// Throws UserError naming the material if a parameter is out of range.
+  explicit MaterialModel(const Material& m);
+
+  /// P-wave speed sqrt((lambda + 2G)/rho), which bounds the stable time step.
+  double wave_speed() const { return std::sqrt((lame_lambda + 2.0 * shear_modulus) / density); }
+  /// Bulk modulus in D dimensions.
+  template <int D>
+  double bulk_modulus() const { return lame_lambda + 2.0 * shear_modulus / D; }
+  /// Friction-cone slope alpha in ||dev sigma|| <= alpha p, p = -tr(sigma)/D.
+  /// 2D: exact Mohr-Coulomb. 3D: Mohr-Coulomb fitted on the compression meridian.
+  template <int D>
+  double cone_slope() const {
+    const double s = std::sin(friction_angle_rad);
+    return D == 2 ? std::sqrt(2.0) * s : std::sqrt(2.0 / 3.0) * 6.0 * s / (3.0 - s);
+  }
+};
+
+/// Hyperelastic Drucker-Prager with Hencky strain (Klar et al. 2016), on the
+/// elastic left Cauchy-Green tensor: be <- f be f^T with f = I + dt L, then a
+/// return map of the principal log strains onto the friction cone; dilated
+/// states (tr eps >= 0) return to the stress-free state.
+/// Updates be, the Cauchy stress and the equivalent plastic shear strain.
+template <int D>
+void update_drucker_prager(const MaterialModel& m, const Mat<D>& f, Mat<D>& be, Mat<D>& stress,
+                           double& plastic_strain);
+
+/// Hypoelastic mu(I) (Dunatunga & Kamrin 2015): Jaumann-rate elastic trial,
+/// then isochoric spin-free plastic flow along the stress deviator at the
+/// rate that satisfies mu(I) = tau/p; no stress below the critical density or
+/// in tension. `density` is the point's current bulk density.
+template <int D>
+void update_mu_i(const MaterialModel& m, const Mat<D>& L, double dt, double density, Mat<D>& stress,
+                 double& plastic_strain);
+
+/// Stress-free-elastic initial state of a point that carries `stress`
+/// (geostatic start): the elastic left Cauchy-Green tensor for Drucker-Prager.
+template <int D>
+Mat<D> elastic_state_for_stress(const MaterialModel& m, const Mat<D>& stress);
+
+}  // namespace mpm

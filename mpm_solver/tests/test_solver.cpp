@@ -1,0 +1,282 @@
+// Whole-solver checks: conservation, lithostatic equilibrium, elastic wave speed.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <omp.h>
+
+#include <random>
+
+#include "mpm/solver.hpp"
+
+namespace {
+
+mpm::Scene base_scene(int dim) {
+  mpm::Scene s;
+  s.dimension = dim;
+  s.gravity = {0, 0, 0};
+  s.grid.cell_size = 0.02;
+  s.grid.lower = {0, 0, 0};
+  s.grid.upper = {1, 1, 1};
+  mpm::Material m;
+  m.name = "sand";
+  m.drucker_prager.friction_angle_deg = 40;
+  s.materials.push_back(m);
+  return s;
+}
+
+mpm::Block box(mpm::Vec3 lo, mpm::Vec3 hi, int ppc) {
+  mpm::Block b;
+  b.material = "sand";
+  b.lower = lo;
+  b.upper = hi;
+  b.points_per_cell = ppc;
+  return b;
+}
+
+template <int D>
+struct Totals {
+  double mass = 0;
+  mpm::Vec<D> momentum = mpm::Vec<D>::Zero();
+  Eigen::Vector3d angular = Eigen::Vector3d::Zero();
+};
+
+Eigen::Vector3d cross3(const mpm::Vec<2>& a, const mpm::Vec<2>& b) { return {0, 0, a[0] * b[1] - a[1] * b[0]}; }
+Eigen::Vector3d cross3(const mpm::Vec<3>& a, const mpm::Vec<3>& b) { return a.cross(b); }
+
+/// Angular momentum of the points, including the APIC affine part
+/// m * eps : (C Dp^T) with Dp = dx^2/4 I for quadratic B-splines.
+template <int D>
+Totals<D> point_totals(const mpm::Solver<D>& s) {
+  Totals<D> t;
+  const auto& p = s.points();
+  const double Dp = 0.25 * s.grid().dx * s.grid().dx;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    t.mass += p.mass[i];
+    t.momentum += p.mass[i] * p.v[i];
+    t.angular += p.mass[i] * cross3(p.x[i], p.v[i]);
+    const auto& C = p.C[i];
+    if constexpr (D == 2) {
+      t.angular[2] += p.mass[i] * Dp * (C(1, 0) - C(0, 1));
+    } else {
+      t.angular += p.mass[i] * Dp * Eigen::Vector3d(C(2, 1) - C(1, 2), C(0, 2) - C(2, 0), C(1, 0) - C(0, 1));
+    }
+  }
+  return t;
+}
+
+/// Totals on the grid after P2G (the momentum array holds momentum then).
+template <int D>
+Totals<D> grid_totals(const mpm::Solver<D>& s) {
+  Totals<D> t;
+  const auto& g = s.grid();
+  for (std::size_t k = 0; k < g.num_nodes(); ++k) {
+    if (g.mass[k] == 0) continue;
+    t.mass += g.mass[k];
+    t.momentum += g.momentum[k];
+    t.angular += cross3(g.node_position(g.node_of(k)), g.momentum[k]);
+  }
+  return t;
+}
+
+template <int D>
+void randomise_velocities(mpm::Solver<D>& s, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  auto& p = s.points();
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    for (int a = 0; a < D; ++a) p.v[i][a] = 0.1 * u(rng);
+    for (int a = 0; a < D; ++a)
+      for (int b = 0; b < D; ++b) p.C[i](a, b) = 0.5 * u(rng);
+  }
+}
+
+template <int D>
+void expect_same(const Totals<D>& a, const Totals<D>& b, double tol) {
+  EXPECT_NEAR(a.mass, b.mass, tol * a.mass);
+  const double pscale = 1e-3 + a.momentum.norm();
+  EXPECT_LE((a.momentum - b.momentum).norm(), tol * pscale);
+  const double lscale = 1e-3 + a.angular.norm();
+  EXPECT_LE((a.angular - b.angular).norm(), tol * lscale);
+}
+
+template <int D>
+void transfers_conserve() {
+  mpm::Scene scene = base_scene(D);
+  scene.blocks.push_back(box({0.3, 0.3, 0.3}, {0.6, 0.55, 0.5}, D == 2 ? 9 : 8));
+  mpm::Solver<D> s(scene);
+  randomise_velocities(s, 3);
+  const Totals<D> points_before = point_totals(s);
+  s.p2g(1e-4);
+  const Totals<D> grid = grid_totals(s);
+  expect_same(points_before, grid, 1e-12);
+  // Grid to points with no force, no motion (dt = 0): APIC recovers the totals.
+  s.grid_update(0.0);
+  s.g2p(0.0);
+  expect_same(points_before, point_totals(s), 1e-12);
+}
+
+}  // namespace
+
+TEST(Transfers, ConserveMassMomentumAngularMomentum2D) { transfers_conserve<2>(); }
+TEST(Transfers, ConserveMassMomentumAngularMomentum3D) { transfers_conserve<3>(); }
+
+namespace {
+template <int D>
+void free_flight_conserves(int threads) {
+  // A stressed, spinning block in free space: internal forces cancel, so mass,
+  // momentum and angular momentum stay to round-off over many full steps.
+  mpm::Scene scene = base_scene(D);
+  scene.blocks.push_back(box({0.35, 0.35, 0.35}, {0.6, 0.55, 0.55}, D == 2 ? 4 : 8));
+  scene.blocks.back().velocity = {0.3, -0.1, 0.05};
+  omp_set_num_threads(threads);
+  mpm::Solver<D> s(scene);
+  // A rigid spin plus a compression so that stresses are non-zero.
+  auto& p = s.points();
+  mpm::Vec<D> c = mpm::Vec<D>::Constant(0.47);
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const mpm::Vec<D> r = p.x[i] - c;
+    p.v[i][0] += -2.0 * r[1] - 0.5 * r[0];
+    p.v[i][1] += 2.0 * r[0] - 0.5 * r[1];
+  }
+  s.p2g(0.0);
+  s.grid_update(0.0);
+  s.g2p(0.0);  // consistent APIC state
+  const Totals<D> before = point_totals(s);
+  double max_stress = 0;
+  for (int k = 0; k < 100; ++k) {
+    s.step(s.stable_dt());
+    for (const auto& st : s.points().stress) max_stress = std::max(max_stress, st.norm());
+  }
+  EXPECT_GT(max_stress, 1.0) << "the test must exercise internal forces";
+  expect_same(before, point_totals(s), 1e-11);
+  omp_set_num_threads(2);
+}
+}  // namespace
+
+TEST(Solver, FreeFlightConservesMomentaOneThread2D) { free_flight_conserves<2>(1); }
+TEST(Solver, FreeFlightConservesMomentaTwoThreads2D) { free_flight_conserves<2>(2); }
+TEST(Solver, FreeFlightConservesMomentaTwoThreads3D) { free_flight_conserves<3>(2); }
+
+TEST(Solver, DeterministicForFixedThreadCount) {
+  auto run = [] {
+    mpm::Scene scene = base_scene(2);
+    scene.gravity = {0, -9.81, 0};
+    scene.blocks.push_back(box({0.2, 0.0, 0}, {0.4, 0.4, 0}, 4));
+    omp_set_num_threads(2);
+    mpm::Solver<2> s(scene);
+    for (int k = 0; k < 200; ++k) {
+      s.step(s.stable_dt());
+      if (k % 50 == 49) s.sort_points_by_cell();
+    }
+    return s.points().x;
+  };
+  const auto a = run(), b = run();
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) ASSERT_EQ(a[i], b[i]) << "point " << i;
+}
+
+TEST(Solver, ElasticBlockReachesLithostaticStress) {
+  // A block filling a slip-walled box settles (with damping) to sigma_yy = -rho g depth.
+  mpm::Scene scene = base_scene(2);
+  scene.gravity = {0, -9.81, 0};
+  scene.grid.cell_size = 0.01;
+  scene.grid.upper = {0.2, 0.6, 0};
+  scene.materials[0].drucker_prager.friction_angle_deg = 45;  // stays elastic (k0 = nu/(1-nu) is inside the cone)
+  scene.materials[0].drucker_prager.youngs_modulus = 2e6;
+  scene.time.damping = 40.0;
+  scene.blocks.push_back(box({0.0, 0.0, 0}, {0.2, 0.4, 0}, 4));
+  mpm::Solver<2> s(scene);
+  while (s.time() < 1.5) s.step(s.stable_dt());
+  const auto& p = s.points();
+  const double rho = scene.materials[0].density, g = 9.81;
+  double top = 0, max_speed = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) top = std::max(top, p.x[i][1]);
+  top += 0.25 * scene.grid.cell_size;  // points sit half a spacing below the surface
+  double worst = 0;
+  int checked = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    max_speed = std::max(max_speed, p.v[i].norm());
+    const double depth = top - p.x[i][1];
+    if (depth < 0.1 * 0.4 || p.x[i][1] < 0.05 * 0.4) continue;  // skip the surface layer and the floor layer
+    const double expected = -rho * g * depth;
+    worst = std::max(worst, std::abs(p.stress[i](1, 1) - expected) / std::abs(expected));
+    ++checked;
+  }
+  EXPECT_GT(checked, 500);
+  EXPECT_LT(worst, 0.04) << "vertical stress vs rho g depth";
+  EXPECT_LT(max_speed, 1e-3) << "the settled block is at rest";
+}
+
+TEST(Solver, GeostaticBlockStaysAtRestWithoutDamping) {
+  mpm::Scene scene = base_scene(2);
+  scene.gravity = {0, -9.81, 0};
+  scene.grid.cell_size = 0.01;
+  scene.grid.upper = {0.2, 0.6, 0};
+  scene.materials[0].drucker_prager.friction_angle_deg = 45;
+  scene.materials[0].drucker_prager.youngs_modulus = 2e6;
+  scene.blocks.push_back(box({0.0, 0.0, 0}, {0.2, 0.4, 0}, 4));
+  scene.blocks.back().geostatic = true;
+  scene.blocks.back().k0 = 0.3 / 0.7;  // nu / (1 - nu): the elastic lateral ratio
+  mpm::Solver<2> s(scene);
+  double max_speed = 0;
+  while (s.time() < 0.5) {
+    s.step(s.stable_dt());
+    max_speed = std::max(max_speed, s.max_speed());
+  }
+  // Free fall over the same time would reach 4.9 m/s; settling noise is far below.
+  EXPECT_LT(max_speed, 0.02);
+}
+
+TEST(Solver, ElasticWaveSpeedMatchesTheory) {
+  // A piston pushes into a laterally confined bar (uniaxial strain): the front
+  // travels at the P-wave speed sqrt((lambda + 2G)/rho).
+  mpm::Scene scene = base_scene(2);
+  scene.grid.cell_size = 0.005;
+  scene.grid.upper = {1.2, 0.05, 0};
+  scene.materials[0].drucker_prager.friction_angle_deg = 60;
+  scene.blocks.push_back(box({0.0, 0.0, 0}, {1.2, 0.05, 0}, 4));
+  mpm::Boundary piston;
+  piston.kind = mpm::BoundaryKind::Plane;
+  piston.contact = mpm::Contact::Slip;
+  piston.point = {0.0, 0, 0};
+  piston.normal = {1, 0, 0};
+  piston.velocity = {0.05, 0, 0};
+  scene.boundaries.push_back(piston);
+  mpm::Solver<2> s(scene);
+  const mpm::MaterialModel model(scene.materials[0]);
+  const double c = model.wave_speed();
+  const double x1 = 0.3, x2 = 0.8;
+  double t1 = -1, t2 = -1;
+  auto front_passed = [&](double xs) {
+    // Mean x-velocity of points in a thin slab at xs exceeds half the piston speed.
+    double sum = 0;
+    int n = 0;
+    for (std::size_t i = 0; i < s.points().size(); ++i)
+      if (std::abs(s.points().x[i][0] - xs) < 0.003) sum += s.points().v[i][0], ++n;
+    return n > 0 && sum / n > 0.025;
+  };
+  while ((t1 < 0 || t2 < 0) && s.time() < 2.0 * 1.2 / c) {
+    s.step(0.5 * s.stable_dt());
+    if (t1 < 0 && front_passed(x1)) t1 = s.time();
+    if (t2 < 0 && front_passed(x2)) t2 = s.time();
+  }
+  ASSERT_GT(t1, 0);
+  ASSERT_GT(t2, t1);
+  const double measured = (x2 - x1) / (t2 - t1);
+  EXPECT_NEAR(measured, c, 0.03 * c);
+}
+
+TEST(Solver, UnstableFixedStepIsRefusedWithTheSafeStep) {
+  mpm::Scene scene = base_scene(2);
+  scene.blocks.push_back(box({0.2, 0.0, 0}, {0.4, 0.2, 0}, 4));
+  scene.time.fixed_dt = 1.0;
+  mpm::Solver<2> s(scene);
+  try {
+    s.next_dt();
+    FAIL() << "expected a UserError";
+  } catch (const mpm::UserError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("[time] dt"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("set [time] dt <="), std::string::npos) << msg;
+  }
+}
