@@ -7,7 +7,7 @@ run the same scene.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 # Planar collapse runout laws, (Lf - L0)/L0 as a function of the aspect ratio a = H0/L0:
@@ -42,7 +42,6 @@ class ColumnCollapse:
     end_time: float = 0.0              # s; 0 = long enough to come to rest
     output_interval: float = 0.0       # s; 0 = first and last frames only
     dimension: int = 2
-    extra: dict = field(default_factory=dict)
 
     @property
     def height(self) -> float:
@@ -61,12 +60,13 @@ class ColumnCollapse:
         d = self.dimension
         length = self.domain_length()
         top = self.height * 1.15 + 4 * self.cell_size
+        below = -2 * self.cell_size  # the floor is a plane of its own, inside the grid
         if d == 2:
-            lower, upper = [0.0, 0.0], [length, top]
+            lower, upper = [0.0, below], [length, top]
             blo, bhi = [0.0, 0.0], [self.width, self.height]
         else:
             depth = 4 * self.cell_size
-            lower, upper = [0.0, 0.0, 0.0], [length, depth, top]
+            lower, upper = [0.0, 0.0, below], [length, depth, top]
             blo, bhi = [0.0, 0.0, 0.0], [self.width, depth, self.height]
         if self.model == "drucker_prager":
             material = f"friction_angle = {self.friction_angle}"
@@ -81,8 +81,7 @@ end_time = {self.settle_time():.6g}
 cell_size = {self.cell_size:g}
 lower = {fmt(lower)}
 upper = {fmt(upper)}
-walls = "friction"
-wall_friction = {self.floor_friction:g}
+walls = "slip"          # the back wall at x = 0 is a symmetry plane
 
 [output]
 directory = "{output_dir}"
@@ -100,9 +99,14 @@ material = "granular"
 lower = {fmt(blo)}
 upper = {fmt(bhi)}
 points_per_cell = {self.points_per_cell}
+
+[[boundary]]
+type = "plane"
+contact = "friction"
+friction = {self.floor_friction:g}
+point = {fmt([0.0] * d)}
+normal = {fmt([0.0] * (d - 1) + [1.0])}
 """
-        for key, value in self.extra.items():
-            text += f"{key} = {value}\n"
         return text
 
     def write(self, directory: Path) -> Path:

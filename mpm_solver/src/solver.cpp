@@ -241,7 +241,7 @@ void Solver<D>::p2g(double dt) {
   const double dx = grid_.dx;
   const double stress_scale = dt * coupler::kQuadraticInverseInertia / (dx * dx);
   const std::size_t span = stencil_span(grid_);
-  const int n_threads = static_cast<int>(thread_grids_.size());
+  const int n_threads = active_threads();
 
   // Clear what the last step touched.
   if (!touched_lo_.empty()) {
@@ -349,7 +349,7 @@ template <int D>
 void Solver<D>::grid_update(double dt) {
   const std::size_t lo = touched_lo_[0], hi = touched_hi_[0];
   const double keep = std::max(0.0, 1.0 - scene_.time.damping * dt);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) num_threads(active_threads())
   for (std::size_t k = lo; k < hi; ++k) {
     const double m = grid_.mass[k];
     if (m <= 0.0) {
@@ -372,7 +372,8 @@ void Solver<D>::g2p(double dt) {
   const std::size_t none = std::numeric_limits<std::size_t>::max();
   std::size_t first_bad = none;
   double max_speed_sq = 0;
-#pragma omp parallel for schedule(static) reduction(max : max_speed_sq) reduction(min : first_bad)
+#pragma omp parallel for schedule(static) num_threads(active_threads()) reduction(max : max_speed_sq) \
+    reduction(min : first_bad)
   for (std::size_t p = 0; p < n_points; ++p) {
     const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
     Vec<D> v = Vec<D>::Zero();

@@ -130,6 +130,7 @@ void free_flight_conserves(int threads) {
   scene.blocks.back().velocity = {0.3, -0.1, 0.05};
   omp_set_num_threads(threads);
   mpm::Solver<D> s(scene);
+  s.set_min_points_per_thread(1);  // exercise the threaded path even on this small block
   // A rigid spin plus a compression so that stresses are non-zero.
   auto& p = s.points();
   mpm::Vec<D> c = mpm::Vec<D>::Constant(0.47);
@@ -164,6 +165,7 @@ TEST(Solver, DeterministicForFixedThreadCount) {
     scene.blocks.push_back(box({0.2, 0.0, 0}, {0.4, 0.4, 0}, 4));
     omp_set_num_threads(2);
     mpm::Solver<2> s(scene);
+    s.set_min_points_per_thread(1);
     for (int k = 0; k < 200; ++k) {
       s.step(s.stable_dt());
       if (k % 50 == 49) s.sort_points_by_cell();

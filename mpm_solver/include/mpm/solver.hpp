@@ -49,6 +49,8 @@ class Solver {
   const std::vector<MaterialModel>& materials() const { return materials_; }
   double time() const { return time_; }
   long steps() const { return steps_; }
+  /// Below this many points per thread a step runs serially (default 4096).
+  void set_min_points_per_thread(std::size_t n) { min_points_per_thread_ = n; }
   /// Largest point speed after the last G2P (or at start).
   double max_speed() const { return max_speed_; }
 
@@ -56,6 +58,12 @@ class Solver {
   void seed_block(const Block& block);
   void apply_boundaries(std::size_t node, Vec<D>& v) const;
   void update_rigid_boundaries();
+  /// Threads worth using: small scenes run serially, since a parallel region
+  /// costs more than it saves below a few thousand points per thread.
+  int active_threads() const {
+    const auto n = static_cast<int>(thread_grids_.size());
+    return points_.size() >= min_points_per_thread_ * thread_grids_.size() ? n : 1;
+  }
 
   Scene scene_;
   std::vector<MaterialModel> materials_;
@@ -67,6 +75,7 @@ class Solver {
   double max_speed_ = 0;
   double time_ = 0;
   long steps_ = 0;
+  std::size_t min_points_per_thread_ = 4096;
 
   // Per-thread scratch grids for P2G (thread 0 writes the main grid), each
   // with the flat node range it touched, so clearing and summing stay local.
