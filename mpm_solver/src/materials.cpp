@@ -24,6 +24,9 @@ MaterialModel::MaterialModel(const Material& m) : kind(m.model), density(m.densi
     const double phi = m.drucker_prager.friction_angle_deg;
     require(phi > 0 && phi < 90, m, "friction_angle must be in (0, 90) degrees");
     friction_angle_rad = phi * M_PI / 180.0;
+    const double G = shear_modulus, lam = lame_lambda;
+    cone_strain_slope[0] = cone_slope<2>() * (2 * lam + 2 * G) / (2 * G * 2);
+    cone_strain_slope[1] = cone_slope<3>() * (3 * lam + 2 * G) / (2 * G * 3);
   } else {
     require(mu_i.mu_s > 0 && mu_i.mu_2 > mu_i.mu_s, m, "mu(I) needs 0 < mu_s < mu_2");
     require(mu_i.I0 > 0 && mu_i.grain_diameter > 0 && mu_i.grain_density > 0, m,
@@ -33,17 +36,67 @@ MaterialModel::MaterialModel(const Material& m) : kind(m.model), density(m.densi
   }
 }
 
+namespace {
+
+// Elastic strains of granular continua are small (|eps| ~ 1e-3), so the tensor
+// log and exp are evaluated by truncated series when the argument is close to
+// identity / zero (error below 1e-11 relative), and by eigen-decomposition
+// otherwise. Both return the same tensor; the series is ~5x cheaper.
+constexpr double kSeriesRadius = 0.01;
+
+/// log(b) for symmetric positive definite b.
+template <int D>
+Mat<D> tensor_log(const Mat<D>& b) {
+  const Mat<D> I = Mat<D>::Identity();
+  const Mat<D> X = b - I;
+  if (X.squaredNorm() <= kSeriesRadius * kSeriesRadius) {
+    // X - X^2/2 + X^3/3 - X^4/4 + X^5/5, Horner form. Each step builds a new
+    // matrix: `acc = I - X * acc` would alias in Eigen's lazy small products.
+    // (Reciprocals multiply: a divide per entry costs as much as the products.)
+    const Mat<D> a4 = 0.25 * I - 0.2 * X;
+    const Mat<D> a3 = (1.0 / 3.0) * I - X * a4;
+    const Mat<D> a2 = 0.5 * I - X * a3;
+    const Mat<D> a1 = I - X * a2;
+    return X * a1;
+  }
+  Eigen::SelfAdjointEigenSolver<Mat<D>> eig;
+  eig.computeDirect(b);
+  const Vec<D> logs = eig.eigenvalues().cwiseMax(1e-300).array().log();
+  return eig.eigenvectors() * logs.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+/// exp(y) for symmetric y.
+template <int D>
+Mat<D> tensor_exp(const Mat<D>& y) {
+  const Mat<D> I = Mat<D>::Identity();
+  if (y.squaredNorm() <= 4.0 * kSeriesRadius * kSeriesRadius) {
+    // I + y + y^2/2 + ... + y^6/720, Horner form.
+    const Mat<D> a6 = I + (1.0 / 6.0) * y;
+    const Mat<D> a5 = I + (0.2 * y) * a6;
+    const Mat<D> a4 = I + (0.25 * y) * a5;
+    const Mat<D> a3 = I + ((1.0 / 3.0) * y) * a4;
+    const Mat<D> a2 = I + (0.5 * y) * a3;
+    return I + y * a2;
+  }
+  Eigen::SelfAdjointEigenSolver<Mat<D>> eig;
+  eig.computeDirect(y);
+  const Vec<D> exps = eig.eigenvalues().array().exp();
+  return eig.eigenvectors() * exps.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+}  // namespace
+
 template <int D>
 void update_drucker_prager(const MaterialModel& m, const Mat<D>& f, Mat<D>& be, Mat<D>& stress,
                            double& plastic_strain) {
-  using V = Vec<D>;
+  const Mat<D> I = Mat<D>::Identity();
+  // Hencky strain of the elastic trial state. The return map below acts on its
+  // trace and deviator only, so it can stay in tensor form (eps and be share
+  // principal axes).
   const Mat<D> trial = f * be * f.transpose();
-  Eigen::SelfAdjointEigenSolver<Mat<D>> eig;
-  eig.computeDirect(trial);
-  const V lambda_sq = eig.eigenvalues().cwiseMax(1e-300);  // squared principal stretches
-  V eps = 0.5 * lambda_sq.array().log().matrix();          // principal Hencky strains
-  const double tr = eps.sum();
-  const V dev = eps.array() - tr / D;
+  Mat<D> eps = 0.5 * tensor_log<D>(trial);
+  const double tr = eps.trace();
+  const Mat<D> dev = eps - (tr / D) * I;
   const double dev_norm = dev.norm();
   const double G = m.shear_modulus, lam = m.lame_lambda;
 
@@ -55,18 +108,16 @@ void update_drucker_prager(const MaterialModel& m, const Mat<D>& f, Mat<D>& be, 
     return;
   }
   // Yield: 2G |dev eps| <= alpha * p, p = -(D lam + 2G)/D * tr eps.
-  const double alpha = m.cone_slope<D>();
-  const double delta_gamma = dev_norm + alpha * (D * lam + 2.0 * G) / (2.0 * G * D) * tr;
+  const double delta_gamma = dev_norm + m.cone_strain_slope[D - 2] * tr;
   if (delta_gamma > 0.0) {
     eps -= (delta_gamma / dev_norm) * dev;  // dev_norm > 0 whenever delta_gamma > 0 here
     plastic_strain += std::sqrt(2.0) * delta_gamma;
+    be = tensor_exp<D>(2.0 * eps);
+  } else {
+    be = trial;  // elastic: exp(2 eps) is the trial state itself
   }
-  const double tr_new = eps.sum();
-  const double Je = std::exp(tr_new);
-  const V kirchhoff = 2.0 * G * eps.array() + lam * tr_new;
-  const auto& Q = eig.eigenvectors();
-  be = Q * (2.0 * eps).array().exp().matrix().asDiagonal() * Q.transpose();
-  stress = Q * (kirchhoff / Je).asDiagonal() * Q.transpose();
+  const double Je = std::exp(tr);  // the return is isochoric: tr eps is unchanged
+  stress = (2.0 * G * eps + lam * tr * I) / Je;
 }
 
 template <int D>

@@ -273,9 +273,12 @@ void Solver<D>::p2g(double dt) {
       const std::size_t base = grid_.index(st.base);
       lo = std::min(lo, base);
       hi = std::max(hi, base + span + 1);
+      const Mat<D> affine_dx = affine * dx;
       for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
         mass[k] += w * m;
-        momentum[k] += w * (mv + affine * (dx * offset));
+        Vec<D> mom = mv;
+        mom.noalias() += affine_dx * offset;
+        momentum[k] += w * mom;
       });
     }
     tg.lo = lo;
@@ -324,15 +327,18 @@ void Solver<D>::apply_boundaries(std::size_t node, Vec<D>& v) const {
     }
     v = b.velocity + vt;
   };
+  // Nodes on a boundary (to rounding: node positions and planes are computed
+  // differently) count as boundary nodes, whatever the compiler's FMA choices.
+  const double on = 1e-9 * grid_.dx;
   for (const auto& b : boundaries_) {
     if (b.spec.kind == BoundaryKind::Plane) {
-      if ((x - b.point).dot(b.normal) <= 0.0) contact(b, b.normal);
+      if ((x - b.point).dot(b.normal) <= on) contact(b, b.normal);
     } else if (b.spec.inside) {
       for (int a = 0; a < D; ++a) {
-        if (x[a] <= b.lower[a]) contact(b, Vec<D>::Unit(a));
-        if (x[a] >= b.upper[a]) contact(b, -Vec<D>::Unit(a));
+        if (x[a] <= b.lower[a] + on) contact(b, Vec<D>::Unit(a));
+        if (x[a] >= b.upper[a] - on) contact(b, -Vec<D>::Unit(a));
       }
-    } else if ((x.array() > b.lower.array()).all() && (x.array() < b.upper.array()).all()) {
+    } else if ((x.array() > b.lower.array() - on).all() && (x.array() < b.upper.array() + on).all()) {
       // Obstacle: push out through the nearest face.
       int axis = 0;
       double best = std::numeric_limits<double>::infinity(), sign = 1;
@@ -379,10 +385,11 @@ void Solver<D>::g2p(double dt) {
     Vec<D> v = Vec<D>::Zero();
     Mat<D> B = Mat<D>::Zero();
     for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
-      const Vec<D>& vi = grid_.momentum[k];
-      v += w * vi;
-      B += (w * dx) * vi * offset.transpose();
+      const Vec<D> wv = w * grid_.momentum[k];
+      v += wv;
+      B.noalias() += wv * offset.transpose();  // noalias: no temporary for the outer product
     });
+    B *= dx;
     const Mat<D> C = inv_inertia * B;
     points_.v[p] = v;
     points_.C[p] = C;
@@ -443,28 +450,33 @@ void Solver<D>::sort_points_by_cell() {
 }
 
 template <int D>
-void run(Solver<D>& solver, bool write_output, const std::function<void(const RunProgress&)>& progress) {
+RunProgress run(Solver<D>& solver, const RunOptions& options, const std::function<void(const RunProgress&)>& progress) {
   using Clock = std::chrono::steady_clock;
   const Scene& scene = solver.scene();
   const double end = scene.time.end_time;
   const double interval = scene.output.interval > 0 ? scene.output.interval : end;
   std::unique_ptr<SnapshotWriter<D>> writer;
-  if (write_output) {
+  if (options.write_output) {
     writer = std::make_unique<SnapshotWriter<D>>(scene.output.directory, scene);
     writer->write(solver.points(), solver.grid(), solver.time(), solver.steps());
   }
   const auto start = Clock::now();
   auto last_report = start;
   long frame = 1;
+  bool state_written = true;
   double next_output = std::min(interval, end);
   const double tiny = 1e-12 * std::max(1.0, end);
   constexpr int kSortEvery = 50;
-  while (solver.time() < end - tiny) {
+  const long first_step = solver.steps();
+  auto rate = [&](double wall) { return (solver.steps() - first_step) * double(solver.points().size()) / wall; };
+  while (solver.time() < end - tiny && (options.max_steps <= 0 || solver.steps() - first_step < options.max_steps)) {
     double dt = solver.next_dt();
     dt = std::min(dt, next_output - solver.time());
     solver.step(dt);
+    state_written = false;
     if (solver.steps() % kSortEvery == 0) solver.sort_points_by_cell();
     if (solver.time() >= next_output - tiny) {
+      state_written = true;
       if (writer) writer->write(solver.points(), solver.grid(), solver.time(), solver.steps());
       ++frame;
       next_output = std::min(end, frame * interval);
@@ -473,19 +485,21 @@ void run(Solver<D>& solver, bool write_output, const std::function<void(const Ru
     const double since = std::chrono::duration<double>(now - last_report).count();
     if (progress && scene.output.progress_interval > 0 && since >= scene.output.progress_interval) {
       const double wall = std::chrono::duration<double>(now - start).count();
-      progress({solver.steps(), solver.time(), dt, wall, solver.steps() * double(solver.points().size()) / wall});
+      progress({solver.steps(), solver.time(), dt, wall, rate(wall)});
       last_report = now;
     }
   }
-  if (progress) {
-    const double wall = std::chrono::duration<double>(Clock::now() - start).count();
-    progress({solver.steps(), solver.time(), 0.0, wall, solver.steps() * double(solver.points().size()) / wall});
-  }
+  if (writer && !state_written)  // stopped early by max_steps: keep the last state
+    writer->write(solver.points(), solver.grid(), solver.time(), solver.steps());
+  const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  const RunProgress summary{solver.steps(), solver.time(), 0.0, wall, rate(wall)};
+  if (progress) progress(summary);
+  return summary;
 }
 
 template class Solver<2>;
 template class Solver<3>;
-template void run<2>(Solver<2>&, bool, const std::function<void(const RunProgress&)>&);
-template void run<3>(Solver<3>&, bool, const std::function<void(const RunProgress&)>&);
+template RunProgress run<2>(Solver<2>&, const RunOptions&, const std::function<void(const RunProgress&)>&);
+template RunProgress run<3>(Solver<3>&, const RunOptions&, const std::function<void(const RunProgress&)>&);
 
 }  // namespace mpm

@@ -14,6 +14,9 @@ struct MaterialModel {
   double density = 0;  ///< bulk density of the continuum
   double shear_modulus = 0, lame_lambda = 0;
   double friction_angle_rad = 0;  ///< Drucker-Prager
+  /// The cone in Hencky-strain terms, for 2D and 3D: yield where
+  /// |dev eps| + cone_strain_slope * tr eps > 0 (precomputed: it is per point-step work).
+  double cone_strain_slope[2] = {0, 0};
   MuIParams mu_i;
 
   /// Throws UserError naming the material if a parameter is out of range.

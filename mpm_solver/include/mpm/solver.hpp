@@ -94,10 +94,15 @@ struct RunProgress {
   double time, dt, wall_seconds, point_steps_per_second;
 };
 
+struct RunOptions {
+  bool write_output = true;
+  long max_steps = 0;  ///< >0: stop after this many steps even before the end time
+};
+
 /// Runs `solver` to the scene's end time, writing snapshots at the output
-/// interval (first and last frames always) when `write_output` is true, and
-/// calling `progress` every progress_interval wall seconds.
+/// interval (first and last frames always) when asked, and calling `progress`
+/// every progress_interval wall seconds and once at the end.
 template <int D>
-void run(Solver<D>& solver, bool write_output, const std::function<void(const RunProgress&)>& progress);
+RunProgress run(Solver<D>& solver, const RunOptions& options, const std::function<void(const RunProgress&)>& progress);
 
 }  // namespace mpm
