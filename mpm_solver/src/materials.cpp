@@ -36,15 +36,51 @@ MaterialModel::MaterialModel(const Material& m) : kind(m.model), density(m.densi
   }
 }
 
-namespace {
-
 // Elastic strains of granular continua are small (|eps| ~ 1e-3), so the tensor
 // log and exp are evaluated by truncated series when the argument is close to
-// identity / zero (error below 1e-11 relative), and by eigen-decomposition
-// otherwise. Both return the same tensor; the series is ~5x cheaper.
+// identity / zero (relative error below r^5/6 = 2e-11 at the radius r), and by
+// eigen-decomposition otherwise. Both give the same tensor; the series is ~5x cheaper.
 constexpr double kSeriesRadius = 0.01;
 
-/// log(b) for symmetric positive definite b.
+namespace {
+// In 2D every function of a symmetric tensor M is alpha I + beta M, with
+// beta the divided difference (f(l1) - f(l2)) / (l1 - l2) of its eigenvalues
+// l = m +- h: exact, closed form and cheap. Near-equal eigenvalues use the
+// series of the divided difference (relative error below 1e-16 there).
+struct Spectrum2 {
+  double m, h;  // mean and half-difference of the eigenvalues
+  explicit Spectrum2(const Mat<2>& a) : m(0.5 * (a(0, 0) + a(1, 1))) {
+    const double d = 0.5 * (a(0, 0) - a(1, 1));
+    h = std::sqrt(d * d + a(0, 1) * a(0, 1));  // not hypot: strains never overflow, and hypot is slow
+  }
+};
+}  // namespace
+
+template <>
+Mat<2> tensor_log<2>(const Mat<2>& b) {
+  const Spectrum2 s(b);
+  const double x = s.h / s.m;
+  // beta = (log(m+h) - log(m-h)) / 2h = atanh(x) / (x m)
+  const double atanh_over_x = x < 1e-4 ? 1.0 + x * x / 3.0 : std::atanh(x) / x;
+  const double beta = atanh_over_x / s.m;
+  const double alpha = 0.5 * std::log((s.m - s.h) * (s.m + s.h)) - beta * s.m;
+  return alpha * Mat<2>::Identity() + beta * b;
+}
+
+template <>
+Mat<2> tensor_exp<2>(const Mat<2>& y) {
+  const Spectrum2 s(y);
+  // beta = (e^(m+h) - e^(m-h)) / 2h = e^m sinh(h) / h
+  // sinh and cosh from one expm1, without cancellation for small h.
+  const double e1 = std::expm1(s.h), eh = 1.0 + e1;
+  const double sinh_h = 0.5 * e1 * (1.0 + 1.0 / eh), cosh_h = 1.0 + 0.5 * e1 * e1 / eh;
+  const double sinh_over_h = s.h < 1e-4 ? 1.0 + s.h * s.h / 6.0 : sinh_h / s.h;
+  const double em = std::exp(s.m);
+  const double beta = em * sinh_over_h;
+  const double alpha = em * cosh_h - beta * s.m;
+  return alpha * Mat<2>::Identity() + beta * y;
+}
+
 template <int D>
 Mat<D> tensor_log(const Mat<D>& b) {
   const Mat<D> I = Mat<D>::Identity();
@@ -65,7 +101,6 @@ Mat<D> tensor_log(const Mat<D>& b) {
   return eig.eigenvectors() * logs.asDiagonal() * eig.eigenvectors().transpose();
 }
 
-/// exp(y) for symmetric y.
 template <int D>
 Mat<D> tensor_exp(const Mat<D>& y) {
   const Mat<D> I = Mat<D>::Identity();
@@ -83,8 +118,6 @@ Mat<D> tensor_exp(const Mat<D>& y) {
   const Vec<D> exps = eig.eigenvalues().array().exp();
   return eig.eigenvectors() * exps.asDiagonal() * eig.eigenvectors().transpose();
 }
-
-}  // namespace
 
 template <int D>
 void update_drucker_prager(const MaterialModel& m, const Mat<D>& f, Mat<D>& be, Mat<D>& stress,
@@ -173,6 +206,8 @@ template void update_drucker_prager<2>(const MaterialModel&, const Mat<2>&, Mat<
 template void update_drucker_prager<3>(const MaterialModel&, const Mat<3>&, Mat<3>&, Mat<3>&, double&);
 template void update_mu_i<2>(const MaterialModel&, const Mat<2>&, double, double, Mat<2>&, double&);
 template void update_mu_i<3>(const MaterialModel&, const Mat<3>&, double, double, Mat<3>&, double&);
+template Mat<3> tensor_log<3>(const Mat<3>&);
+template Mat<3> tensor_exp<3>(const Mat<3>&);
 template Mat<2> elastic_state_for_stress<2>(const MaterialModel&, const Mat<2>&);
 template Mat<3> elastic_state_for_stress<3>(const MaterialModel&, const Mat<3>&);
 

@@ -148,3 +148,39 @@ TEST(Materials, BadParametersNameTheMaterial) {
     EXPECT_NE(std::string(e.what()).find("poisson_ratio"), std::string::npos);
   }
 }
+
+namespace {
+template <int D>
+mpm::Mat<D> exact_function(const mpm::Mat<D>& a, double (*fn)(double)) {
+  Eigen::SelfAdjointEigenSolver<mpm::Mat<D>> eig(a);
+  mpm::Vec<D> values;
+  for (int i = 0; i < D; ++i) values[i] = fn(eig.eigenvalues()[i]);
+  return eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+template <int D>
+void tensor_log_exp_match_spectral_definition() {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  // Magnitudes on both sides of the series radius (0.01), up to large strains.
+  for (double scale : {1e-6, 1e-3, 0.005, 0.0099, 0.0101, 0.05, 0.5}) {
+    for (int trial = 0; trial < 50; ++trial) {
+      mpm::Mat<D> X;
+      for (int i = 0; i < D; ++i)
+        for (int j = 0; j < D; ++j) X(i, j) = u(rng);
+      X = (0.5 * (X + X.transpose())).eval();  // eval: X + X^T aliases in place
+      X *= scale / X.norm();
+      const mpm::Mat<D> b = mpm::Mat<D>::Identity() + X;
+      const mpm::Mat<D> log_b = mpm::tensor_log<D>(b);
+      const mpm::Mat<D> exact = exact_function<D>(b, [](double x) { return std::log(x); });
+      // 2e-11: series truncation at the radius; 1e-14: round-off of the reference.
+      EXPECT_LE((log_b - exact).norm(), 2e-11 * exact.norm() + 1e-14) << "scale " << scale;
+      const mpm::Mat<D> back = mpm::tensor_exp<D>(log_b);
+      EXPECT_LE((back - b).norm(), 1e-12 * b.norm()) << "exp(log b) = b, scale " << scale;
+    }
+  }
+}
+}  // namespace
+
+TEST(TensorFunctions, LogAndExpMatchSpectralDefinition2D) { tensor_log_exp_match_spectral_definition<2>(); }
+TEST(TensorFunctions, LogAndExpMatchSpectralDefinition3D) { tensor_log_exp_match_spectral_definition<3>(); }

@@ -282,3 +282,63 @@ TEST(Solver, UnstableFixedStepIsRefusedWithTheSafeStep) {
     EXPECT_NE(msg.find("set [time] dt <="), std::string::npos) << msg;
   }
 }
+
+TEST(Boundaries, CoulombFloorDeceleratesSlidingBlockAtMuG) {
+  // A block sliding on a friction floor decelerates at mu g (Coulomb), the
+  // analytic answer, since the floor's normal impulse is the block's weight.
+  mpm::Scene scene = base_scene(2);
+  scene.gravity = {0, -9.81, 0};
+  scene.grid.cell_size = 0.01;
+  scene.grid.lower = {0, -0.02, 0};
+  scene.grid.upper = {1.0, 0.2, 0};
+  scene.materials[0].drucker_prager.youngs_modulus = 2e6;
+  scene.blocks.push_back(box({0.05, 0.0, 0}, {0.25, 0.05, 0}, 4));
+  scene.blocks.back().velocity = {1.0, 0, 0};
+  scene.blocks.back().geostatic = true;
+  mpm::Boundary floor;
+  floor.contact = mpm::Contact::Friction;
+  floor.friction = 0.3;
+  floor.point = {0, 0, 0};
+  floor.normal = {0, 1, 0};
+  scene.boundaries.push_back(floor);
+  mpm::Solver<2> s(scene);
+  while (s.time() < 0.15) s.step(std::min(s.stable_dt(), 0.15 - s.time()));
+  double mass = 0, momentum = 0;
+  for (std::size_t i = 0; i < s.points().size(); ++i) {
+    mass += s.points().mass[i];
+    momentum += s.points().mass[i] * s.points().v[i][0];
+  }
+  const double expected = 1.0 - 0.3 * 9.81 * 0.15;
+  EXPECT_NEAR(momentum / mass, expected, 0.05 * expected);
+}
+
+TEST(Boundaries, MovingIntruderPushesMaterialAndIsNotPenetrated) {
+  // A rigid box driven down into a bed at a prescribed speed.
+  mpm::Scene scene = base_scene(2);
+  scene.gravity = {0, -9.81, 0};
+  scene.grid.cell_size = 0.01;
+  scene.grid.upper = {0.6, 0.4, 0};
+  scene.materials[0].drucker_prager.youngs_modulus = 2e6;
+  scene.blocks.push_back(box({0.0, 0.0, 0}, {0.6, 0.2, 0}, 4));
+  scene.blocks.back().geostatic = true;
+  mpm::Boundary intruder;
+  intruder.kind = mpm::BoundaryKind::Box;
+  intruder.inside = false;
+  intruder.contact = mpm::Contact::Sticky;
+  intruder.lower = {0.25, 0.21, 0};
+  intruder.upper = {0.35, 0.31, 0};
+  intruder.velocity = {0, -0.5, 0};
+  scene.boundaries.push_back(intruder);
+  mpm::Solver<2> s(scene);
+  while (s.time() < 0.2) s.step(std::min(s.stable_dt(), 0.2 - s.time()));
+  // The box has moved 0.1 m down: its bottom is at 0.11 m, 9 cm into the bed.
+  const double bottom = 0.21 - 0.5 * s.time();
+  int deep_inside = 0, moving_down = 0;
+  for (std::size_t i = 0; i < s.points().size(); ++i) {
+    const auto& x = s.points().x[i];
+    if (x[0] > 0.25 + 0.01 && x[0] < 0.35 - 0.01 && x[1] > bottom + 0.015 && x[1] < bottom + 0.1) ++deep_inside;
+    if (s.points().v[i][1] < -0.1) ++moving_down;
+  }
+  EXPECT_EQ(deep_inside, 0) << "no material more than a cell and a half inside the intruder";
+  EXPECT_GT(moving_down, 50) << "the intruder drives material ahead of it";
+}

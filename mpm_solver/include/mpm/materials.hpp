@@ -36,6 +36,13 @@ struct MaterialModel {
   }
 };
 
+/// Matrix logarithm of a symmetric positive definite tensor.
+template <int D>
+Mat<D> tensor_log(const Mat<D>& b);
+/// Matrix exponential of a symmetric tensor.
+template <int D>
+Mat<D> tensor_exp(const Mat<D>& y);
+
 /// Hyperelastic Drucker-Prager with Hencky strain (Klar et al. 2016), on the
 /// elastic left Cauchy-Green tensor: be <- f be f^T with f = I + dt L, then a
 /// return map of the principal log strains onto the friction cone; dilated
