@@ -36,17 +36,43 @@ MaterialModel::MaterialModel(const Material& m) : kind(m.model), density(m.densi
   }
 }
 
-// Elastic strains of granular continua are small (|eps| ~ 1e-3), so the tensor
-// log and exp are evaluated by truncated series when the argument is close to
-// identity / zero (relative error below r^5/6 = 2e-11 at the radius r), and by
-// eigen-decomposition otherwise. Both give the same tensor; the series is ~5x cheaper.
+// Tensor log and exp of symmetric tensors. Elastic strains of granular
+// continua are small (|eps| ~ 1e-3), so near identity / zero a truncated series
+// is used (relative error below r^5/6 = 2e-11 at the radius r); elsewhere the
+// spectral definition: closed form in 2D, eigen-decomposition in 3D. Both give
+// the same tensor; the series is several times cheaper.
+namespace {
+
 constexpr double kSeriesRadius = 0.01;
 
-namespace {
-// In 2D every function of a symmetric tensor M is alpha I + beta M, with
+template <int D>
+Mat<D> series_log(const Mat<D>& X) {  // log(I + X)
+  const Mat<D> I = Mat<D>::Identity();
+  // X - X^2/2 + X^3/3 - X^4/4 + X^5/5, Horner form. Each step builds a new
+  // matrix: `acc = I - X * acc` would alias in Eigen's lazy small products.
+  // (Reciprocals multiply: a divide per entry costs as much as the products.)
+  const Mat<D> a4 = 0.25 * I - 0.2 * X;
+  const Mat<D> a3 = (1.0 / 3.0) * I - X * a4;
+  const Mat<D> a2 = 0.5 * I - X * a3;
+  const Mat<D> a1 = I - X * a2;
+  return X * a1;
+}
+
+template <int D>
+Mat<D> series_exp(const Mat<D>& y) {
+  const Mat<D> I = Mat<D>::Identity();
+  // I + y + y^2/2 + ... + y^6/720, Horner form.
+  const Mat<D> a6 = I + (1.0 / 6.0) * y;
+  const Mat<D> a5 = I + (0.2 * y) * a6;
+  const Mat<D> a4 = I + (0.25 * y) * a5;
+  const Mat<D> a3 = I + ((1.0 / 3.0) * y) * a4;
+  const Mat<D> a2 = I + (0.5 * y) * a3;
+  return I + y * a2;
+}
+
+// In 2D every function f of a symmetric tensor M is alpha I + beta M, with
 // beta the divided difference (f(l1) - f(l2)) / (l1 - l2) of its eigenvalues
-// l = m +- h: exact, closed form and cheap. Near-equal eigenvalues use the
-// series of the divided difference (relative error below 1e-16 there).
+// l = m +- h. Near-equal eigenvalues use the series of the divided difference.
 struct Spectrum2 {
   double m, h;  // mean and half-difference of the eigenvalues
   explicit Spectrum2(const Mat<2>& a) : m(0.5 * (a(0, 0) + a(1, 1))) {
@@ -54,10 +80,8 @@ struct Spectrum2 {
     h = std::sqrt(d * d + a(0, 1) * a(0, 1));  // not hypot: strains never overflow, and hypot is slow
   }
 };
-}  // namespace
 
-template <>
-Mat<2> tensor_log<2>(const Mat<2>& b) {
+Mat<2> spectral_log(const Mat<2>& b) {
   const Spectrum2 s(b);
   const double x = s.h / s.m;
   // beta = (log(m+h) - log(m-h)) / 2h = atanh(x) / (x m)
@@ -67,11 +91,10 @@ Mat<2> tensor_log<2>(const Mat<2>& b) {
   return alpha * Mat<2>::Identity() + beta * b;
 }
 
-template <>
-Mat<2> tensor_exp<2>(const Mat<2>& y) {
+Mat<2> spectral_exp(const Mat<2>& y) {
   const Spectrum2 s(y);
-  // beta = (e^(m+h) - e^(m-h)) / 2h = e^m sinh(h) / h
-  // sinh and cosh from one expm1, without cancellation for small h.
+  // beta = (e^(m+h) - e^(m-h)) / 2h = e^m sinh(h) / h; sinh and cosh from one
+  // expm1, without cancellation for small h.
   const double e1 = std::expm1(s.h), eh = 1.0 + e1;
   const double sinh_h = 0.5 * e1 * (1.0 + 1.0 / eh), cosh_h = 1.0 + 0.5 * e1 * e1 / eh;
   const double sinh_over_h = s.h < 1e-4 ? 1.0 + s.h * s.h / 6.0 : sinh_h / s.h;
@@ -81,42 +104,31 @@ Mat<2> tensor_exp<2>(const Mat<2>& y) {
   return alpha * Mat<2>::Identity() + beta * y;
 }
 
+Mat<3> spectral_log(const Mat<3>& b) {
+  Eigen::SelfAdjointEigenSolver<Mat<3>> eig;
+  eig.computeDirect(b);
+  const Vec<3> logs = eig.eigenvalues().cwiseMax(1e-300).array().log();
+  return eig.eigenvectors() * logs.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+Mat<3> spectral_exp(const Mat<3>& y) {
+  Eigen::SelfAdjointEigenSolver<Mat<3>> eig;
+  eig.computeDirect(y);
+  const Vec<3> exps = eig.eigenvalues().array().exp();
+  return eig.eigenvectors() * exps.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+}  // namespace
+
 template <int D>
 Mat<D> tensor_log(const Mat<D>& b) {
-  const Mat<D> I = Mat<D>::Identity();
-  const Mat<D> X = b - I;
-  if (X.squaredNorm() <= kSeriesRadius * kSeriesRadius) {
-    // X - X^2/2 + X^3/3 - X^4/4 + X^5/5, Horner form. Each step builds a new
-    // matrix: `acc = I - X * acc` would alias in Eigen's lazy small products.
-    // (Reciprocals multiply: a divide per entry costs as much as the products.)
-    const Mat<D> a4 = 0.25 * I - 0.2 * X;
-    const Mat<D> a3 = (1.0 / 3.0) * I - X * a4;
-    const Mat<D> a2 = 0.5 * I - X * a3;
-    const Mat<D> a1 = I - X * a2;
-    return X * a1;
-  }
-  Eigen::SelfAdjointEigenSolver<Mat<D>> eig;
-  eig.computeDirect(b);
-  const Vec<D> logs = eig.eigenvalues().cwiseMax(1e-300).array().log();
-  return eig.eigenvectors() * logs.asDiagonal() * eig.eigenvectors().transpose();
+  const Mat<D> X = b - Mat<D>::Identity();
+  return X.squaredNorm() <= kSeriesRadius * kSeriesRadius ? series_log<D>(X) : spectral_log(b);
 }
 
 template <int D>
 Mat<D> tensor_exp(const Mat<D>& y) {
-  const Mat<D> I = Mat<D>::Identity();
-  if (y.squaredNorm() <= 4.0 * kSeriesRadius * kSeriesRadius) {
-    // I + y + y^2/2 + ... + y^6/720, Horner form.
-    const Mat<D> a6 = I + (1.0 / 6.0) * y;
-    const Mat<D> a5 = I + (0.2 * y) * a6;
-    const Mat<D> a4 = I + (0.25 * y) * a5;
-    const Mat<D> a3 = I + ((1.0 / 3.0) * y) * a4;
-    const Mat<D> a2 = I + (0.5 * y) * a3;
-    return I + y * a2;
-  }
-  Eigen::SelfAdjointEigenSolver<Mat<D>> eig;
-  eig.computeDirect(y);
-  const Vec<D> exps = eig.eigenvalues().array().exp();
-  return eig.eigenvectors() * exps.asDiagonal() * eig.eigenvectors().transpose();
+  return y.squaredNorm() <= 4.0 * kSeriesRadius * kSeriesRadius ? series_exp<D>(y) : spectral_exp(y);
 }
 
 template <int D>
@@ -206,7 +218,9 @@ template void update_drucker_prager<2>(const MaterialModel&, const Mat<2>&, Mat<
 template void update_drucker_prager<3>(const MaterialModel&, const Mat<3>&, Mat<3>&, Mat<3>&, double&);
 template void update_mu_i<2>(const MaterialModel&, const Mat<2>&, double, double, Mat<2>&, double&);
 template void update_mu_i<3>(const MaterialModel&, const Mat<3>&, double, double, Mat<3>&, double&);
+template Mat<2> tensor_log<2>(const Mat<2>&);
 template Mat<3> tensor_log<3>(const Mat<3>&);
+template Mat<2> tensor_exp<2>(const Mat<2>&);
 template Mat<3> tensor_exp<3>(const Mat<3>&);
 template Mat<2> elastic_state_for_stress<2>(const MaterialModel&, const Mat<2>&);
 template Mat<3> elastic_state_for_stress<3>(const MaterialModel&, const Mat<3>&);

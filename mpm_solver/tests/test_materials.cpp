@@ -182,5 +182,17 @@ void tensor_log_exp_match_spectral_definition() {
 }
 }  // namespace
 
+TEST(TensorFunctions, NearlyIsotropicLargeStrainIsExact) {
+  // Far outside the series radius with (nearly) equal eigenvalues: the 2D
+  // closed form's divided-difference branch.
+  for (double shear : {0.0, 1e-9, 1e-6}) {
+    mpm::Mat<2> b = 0.8 * mpm::Mat<2>::Identity();
+    b(0, 1) = b(1, 0) = shear;
+    const mpm::Mat<2> exact = exact_function<2>(b, [](double x) { return std::log(x); });
+    EXPECT_LE((mpm::tensor_log<2>(b) - exact).norm(), 1e-14) << shear;
+    EXPECT_LE((mpm::tensor_exp<2>(exact) - b).norm(), 1e-14) << shear;
+  }
+}
+
 TEST(TensorFunctions, LogAndExpMatchSpectralDefinition2D) { tensor_log_exp_match_spectral_definition<2>(); }
 TEST(TensorFunctions, LogAndExpMatchSpectralDefinition3D) { tensor_log_exp_match_spectral_definition<3>(); }
