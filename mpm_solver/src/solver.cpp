@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "coupler/bspline.hpp"
+#include "coupler/stencil.hpp"
 #include "mpm/output.hpp"
 
 namespace mpm {
@@ -28,28 +29,6 @@ std::string format_vec(const double* x, int n) {
   for (int a = 0; a < n; ++a) s << (a ? ", " : "") << x[a];
   s << ')';
   return s.str();
-}
-
-/// Calls f(flat node index, weight, node offset from the point in cell units)
-/// for the 3^D nodes of a quadratic stencil.
-template <int D, class F>
-inline void for_each_stencil_node(const coupler::QuadraticStencil<D>& s, const Grid<D>& g, F&& f) {
-  const std::size_t base = g.index(s.base);
-  if constexpr (D == 2) {
-    const std::size_t sx = static_cast<std::size_t>(g.dims[1]);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        f(base + i * sx + j, s.w[0][i] * s.w[1][j], Vec<2>(i - s.frac[0], j - s.frac[1]));
-  } else {
-    const std::size_t sy = static_cast<std::size_t>(g.dims[2]);
-    const std::size_t sx = sy * static_cast<std::size_t>(g.dims[1]);
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
-        const double wij = s.w[0][i] * s.w[1][j];
-        for (int k = 0; k < 3; ++k)
-          f(base + i * sx + j * sy + k, wij * s.w[2][k], Vec<3>(i - s.frac[0], j - s.frac[1], k - s.frac[2]));
-      }
-  }
 }
 
 /// Flat index span [first, last] of a stencil's nodes.
@@ -274,7 +253,7 @@ void Solver<D>::p2g(double dt) {
       lo = std::min(lo, base);
       hi = std::max(hi, base + span + 1);
       const Mat<D> affine_dx = affine * dx;
-      for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
+      coupler::for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
         mass[k] += w * m;
         Vec<D> mom = mv;
         mom.noalias() += affine_dx * offset;
@@ -384,7 +363,7 @@ void Solver<D>::g2p(double dt) {
     const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
     Vec<D> v = Vec<D>::Zero();
     Mat<D> B = Mat<D>::Zero();
-    for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
+    coupler::for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
       const Vec<D> wv = w * grid_.momentum[k];
       v += wv;
       B.noalias() += wv * offset.transpose();  // noalias: no temporary for the outer product

@@ -1,0 +1,111 @@
+#pragma once
+// Grain <-> grid transfers and the velocity agreement of the hybrid zone
+// (DESIGN.md section 5, after Yue et al. 2018). No LAMMPS types: grains come
+// as strided arrays, so any DEM host (LAMMPS, LIGGGHTS) can call these.
+//
+// Conservation: a grain of mass m and hybrid weight w contributes w*m and
+// w*m*v to its nodes; the agreement moves momentum lambda_i from the MPM side
+// to the DEM side at every shared node, and the grain corrections add exactly
+// sum_i lambda_i to the weighted grain momentum sum_g w_g m_g v_g. The
+// weighted total of both sides is therefore unchanged to round-off.
+#include <Eigen/Core>
+#include <algorithm>
+#include <cstddef>
+#include <vector>
+
+#include "coupler/bspline.hpp"
+#include "coupler/grid_geometry.hpp"
+#include "coupler/stencil.hpp"
+
+namespace coupler {
+
+/// Grains as strided arrays (LAMMPS keeps x and v as n x 3 blocks, also in 2D).
+struct GrainView {
+  std::size_t count = 0;
+  const double* x = nullptr;       ///< position of grain g at x[g * stride]
+  const double* v = nullptr;       ///< velocity, same layout
+  std::size_t stride = 3;
+  const double* mass = nullptr;    ///< mass of grain g at mass[g]
+  const double* weight = nullptr;  ///< hybrid weight w in [0, 1] of grain g (share of its mass the DEM side carries)
+};
+
+/// Mass and momentum one side holds at a node.
+template <int D>
+struct NodeMomentum {
+  std::size_t node = 0;
+  double mass = 0;
+  Eigen::Matrix<double, D, 1> momentum = Eigen::Matrix<double, D, 1>::Zero();
+};
+
+namespace detail {
+template <int D>
+Eigen::Matrix<double, D, 1> read(const double* base, std::size_t g, std::size_t stride) {
+  return Eigen::Map<const Eigen::Matrix<double, D, 1>>(base + g * stride);
+}
+
+/// Calls f(node, weight) for the 3^D stencil nodes of x.
+template <int D, class F>
+void for_each_node(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& x, F&& f) {
+  for_each_stencil_node<D>(QuadraticStencil<D>(grid.to_cell_units(x)), grid,
+                           [&](std::size_t node, double w, const auto&) { f(node, w); });
+}
+}  // namespace detail
+
+/// Weighted grain mass and momentum on the nodes they touch, one entry per
+/// node, sorted by node index. Summation order is fixed, so the result does
+/// not depend on anything but the input order. Grains must lie where their
+/// stencil is on the grid (GridGeometry::stencil_on_grid).
+template <int D>
+std::vector<NodeMomentum<D>> grains_to_nodes(const GridGeometry<D>& grid, const GrainView& grains) {
+  struct Entry {
+    std::size_t node;
+    std::size_t grain;
+    double w;
+  };
+  std::vector<Entry> entries;
+  entries.reserve(grains.count * (D == 2 ? 9 : 27));
+  for (std::size_t g = 0; g < grains.count; ++g)
+    detail::for_each_node<D>(grid, detail::read<D>(grains.x, g, grains.stride),
+                             [&](std::size_t node, double w) { entries.push_back({node, g, w}); });
+  std::stable_sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.node < b.node; });
+  std::vector<NodeMomentum<D>> nodes;
+  for (const Entry& e : entries) {
+    if (nodes.empty() || nodes.back().node != e.node)
+      nodes.push_back({e.node, 0.0, Eigen::Matrix<double, D, 1>::Zero()});  // {} would leave it uninitialised
+    const double m = e.w * grains.weight[e.grain] * grains.mass[e.grain];
+    nodes.back().mass += m;
+    nodes.back().momentum += m * detail::read<D>(grains.v, e.grain, grains.stride);
+  }
+  return nodes;
+}
+
+/// The momentum lambda that moves from the MPM side to the DEM side at a node
+/// so that both end with the common velocity (p_mpm + p_dem)/(m_mpm + m_dem).
+template <int D>
+Eigen::Matrix<double, D, 1> agreement_impulse(double m_mpm, const Eigen::Matrix<double, D, 1>& p_mpm, double m_dem,
+                                              const Eigen::Matrix<double, D, 1>& p_dem) {
+  return (m_dem * p_mpm - m_mpm * p_dem) / (m_mpm + m_dem);
+}
+
+/// Velocity corrections dv_g = sum_i N_ig lambda_i / m_dem_i for each grain,
+/// given per node (sorted by node, as grains_to_nodes returns them) the DEM
+/// mass m_dem_i and the impulse lambda_i. Writes grains.count * D values to dv.
+template <int D>
+void grain_corrections(const GridGeometry<D>& grid, const GrainView& grains, const std::vector<NodeMomentum<D>>& dem,
+                       const std::vector<Eigen::Matrix<double, D, 1>>& lambda, double* dv) {
+  auto find = [&](std::size_t node) {
+    const auto it = std::lower_bound(dem.begin(), dem.end(), node,
+                                     [](const NodeMomentum<D>& n, std::size_t k) { return n.node < k; });
+    return static_cast<std::size_t>(it - dem.begin());
+  };
+  for (std::size_t g = 0; g < grains.count; ++g) {
+    Eigen::Matrix<double, D, 1> sum = Eigen::Matrix<double, D, 1>::Zero();
+    detail::for_each_node<D>(grid, detail::read<D>(grains.x, g, grains.stride), [&](std::size_t node, double w) {
+      const std::size_t i = find(node);
+      if (i < dem.size() && dem[i].node == node && dem[i].mass > 0) sum += (w / dem[i].mass) * lambda[i];
+    });
+    Eigen::Map<Eigen::Matrix<double, D, 1>>(dv + g * D) = sum;
+  }
+}
+
+}  // namespace coupler
