@@ -161,7 +161,8 @@ void update_drucker_prager(const MaterialModel& m, const Mat<D>& f, Mat<D>& be, 
   } else {
     be = trial;  // elastic: exp(2 eps) is the trial state itself
   }
-  const double Je = std::exp(tr);  // the return is isochoric: tr eps is unchanged
+  // J_e = exp(tr eps) = sqrt(det b) (cheaper than exp); the return is isochoric.
+  const double Je = std::sqrt(trial.determinant());
   stress = (2.0 * G * eps + lam * tr * I) / Je;
 }
 
