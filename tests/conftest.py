@@ -35,3 +35,33 @@ def run_mpm(exe: Path, scene: Path, *args: str, timeout: float = 900, check: boo
     if check and proc.returncode != 0:
         raise AssertionError(f"mpm_solver failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
     return proc
+
+
+# ---- coupled LAMMPS + MPM runs (tests/test_coupled_launch.py) ----------------------------
+
+@pytest.fixture(scope="session")
+def hybrid_programs() -> dict:
+    """Paths of lmp_hybrid, mpm_solver, the PLUGIN-enabled lmp and hybridmpmplugin.so, as
+    lammps_fix_hybrid/CMakeLists.txt wrote them (empty strings for the plugin pair if the
+    PLUGIN-enabled LAMMPS was not found at configure time)."""
+    import json
+    path = BUILD / "lammps_fix_hybrid" / "hybrid_programs.json"
+    if not path.exists():
+        pytest.fail(f"{path} is missing; run tools/setup.sh first")
+    programs = json.loads(path.read_text())
+    for key in ("lmp_hybrid", "mpm_solver"):
+        if not Path(programs[key]).exists():
+            pytest.fail(f"{programs[key]} is not built; run tools/setup.sh first")
+    return programs
+
+
+@pytest.fixture(scope="session")
+def hybrid_plugin(hybrid_programs) -> tuple[Path, Path]:
+    """(lmp_plugin, hybridmpmplugin.so); skips if the PLUGIN-enabled LAMMPS is not built."""
+    lmp, plugin = hybrid_programs.get("lmp_plugin", ""), hybrid_programs.get("plugin", "")
+    if not lmp or not Path(lmp).exists():
+        pytest.skip("the PLUGIN-enabled LAMMPS is not built (tools/setup.sh builds it into "
+                    "$HYBRID_CACHE/lammps-plugin; reconfigure afterwards)")
+    if not plugin or not Path(plugin).exists():
+        pytest.fail(f"hybridmpmplugin.so is not built although {lmp} exists; run tools/setup.sh")
+    return Path(lmp), Path(plugin)

@@ -13,8 +13,15 @@
 #      lammps version, unpacked at $HYBRID_CACHE/lammps-src (full LAMMPS headers)
 #   3. Python venv at $HYBRID_CACHE/venv from tools/requirements.txt
 #      (recreated when that file's hash changes)
-#   4. cmake configure (Ninja, Release, -DLAMMPS_SOURCE_DIR=...) + build into build/
-#   5. build/hybrid-env.sh for other scripts to source
+#   4. a PLUGIN-enabled LAMMPS built from that same source tree (packages PLUGIN and
+#      GRANULAR, MPI, C++ exceptions, shared library liblammps_plugin.so, program
+#      lmp_plugin), installed at $HYBRID_CACHE/lammps-plugin; cached, rebuilt only when
+#      the source version or the build options change (stamp lammps-plugin.stamp).
+#      Takes several minutes the first time (log: $HYBRID_CACHE/lammps-plugin.log).
+#   5. cmake configure (Ninja, Release, -DLAMMPS_SOURCE_DIR=... -DLAMMPS_PLUGIN_PREFIX=...)
+#      + build into build/
+#   6. build/hybrid-env.sh for other scripts to source (puts build/mpm_solver and
+#      build/lammps_fix_hybrid (lmp_hybrid) on PATH, exports LAMMPS_PLUGIN_PREFIX)
 #
 # Environment
 #   HYBRID_CACHE        cache dir (default ${XDG_CACHE_HOME:-$HOME/.cache}/hybrid-granular),
@@ -46,6 +53,19 @@ CACHE="${HYBRID_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/hybrid-granular}"
 VENV="$CACHE/venv"
 LAMMPS_SRC="$CACHE/lammps-src"
 LAMMPS_STAMP="$CACHE/lammps-src.stamp"
+LMP_PLUGIN_PREFIX="$CACHE/lammps-plugin"
+LMP_PLUGIN_BUILD="$CACHE/lammps-plugin-build"
+LMP_PLUGIN_STAMP="$CACHE/lammps-plugin.stamp"
+LMP_PLUGIN_LOG="$CACHE/lammps-plugin.log"
+# Options of the PLUGIN-enabled LAMMPS (changing them triggers a rebuild). Shared library
+# (plugins need it), suffix "plugin" (liblammps_plugin.so, lmp_plugin) so that it can never
+# be mistaken for Debian's liblammps.so.0, and an RPATH to its own lib directory
+# (LAMMPS_INSTALL_RPATH=on would set an empty one in this LAMMPS version).
+LMP_PLUGIN_OPTS=(-D PKG_PLUGIN=on -D PKG_GRANULAR=on -D BUILD_MPI=on -D BUILD_OMP=off
+                 -D LAMMPS_EXCEPTIONS=on -D BUILD_SHARED_LIBS=on -D LAMMPS_MACHINE=plugin
+                 -D CMAKE_INSTALL_LIBDIR=lib -D CMAKE_INSTALL_RPATH="$LMP_PLUGIN_PREFIX/lib"
+                 -D LAMMPS_SIZES=smallbig -D CMAKE_BUILD_TYPE=Release
+                 -D WITH_JPEG=off -D WITH_PNG=off -D WITH_FFMPEG=off -D WITH_GZIP=on)
 REQ="$REPO/tools/requirements.txt"
 SRC_SOURCES=/etc/apt/sources.list.d/hybrid-granular-src.sources
 JOBS="${HYBRID_BUILD_JOBS:-$(nproc)}"
@@ -218,7 +238,35 @@ ensure_venv() {
   printf '%s\n' "$hash" > "$stamp"
 }
 
-# ----------------------------------------------------------------- 4. build
+# ------------------------------------------ 4. PLUGIN-enabled LAMMPS (cached)
+ensure_plugin_lammps() {
+  local want
+  want="$(cat "$LAMMPS_STAMP") | ${LMP_PLUGIN_OPTS[*]}"
+  if [[ -f $LMP_PLUGIN_STAMP && "$(cat "$LMP_PLUGIN_STAMP")" == "$want" \
+        && -x $LMP_PLUGIN_PREFIX/bin/lmp_plugin ]]; then
+    log "PLUGIN-enabled LAMMPS present: $LMP_PLUGIN_PREFIX/bin/lmp_plugin"
+    return
+  fi
+  log "building a PLUGIN-enabled LAMMPS from $LAMMPS_SRC (several minutes; log: $LMP_PLUGIN_LOG)"
+  rm -rf "$LMP_PLUGIN_BUILD" "$LMP_PLUGIN_PREFIX" "$LMP_PLUGIN_STAMP"
+  local t0=$SECONDS
+  if ! { cmake -S "$LAMMPS_SRC/cmake" -B "$LMP_PLUGIN_BUILD" -G Ninja \
+           -D CMAKE_INSTALL_PREFIX="$LMP_PLUGIN_PREFIX" "${LMP_PLUGIN_OPTS[@]}" \
+         && cmake --build "$LMP_PLUGIN_BUILD" -j "$JOBS" \
+         && cmake --install "$LMP_PLUGIN_BUILD"; } >"$LMP_PLUGIN_LOG" 2>&1; then
+    tail -n 30 "$LMP_PLUGIN_LOG" >&2
+    die "building the PLUGIN-enabled LAMMPS failed (full log: $LMP_PLUGIN_LOG)"
+  fi
+  [[ -x $LMP_PLUGIN_PREFIX/bin/lmp_plugin ]] || die "PLUGIN-enabled LAMMPS installed no bin/lmp_plugin (log: $LMP_PLUGIN_LOG)"
+  OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "$LMP_PLUGIN_PREFIX/bin/lmp_plugin" -h </dev/null \
+    | grep -w PLUGIN >/dev/null \
+    || die "$LMP_PLUGIN_PREFIX/bin/lmp_plugin does not list the PLUGIN package (log: $LMP_PLUGIN_LOG)"
+  rm -rf "$LMP_PLUGIN_BUILD"      # objects are not needed once installed
+  printf '%s\n' "$want" > "$LMP_PLUGIN_STAMP"
+  log "PLUGIN-enabled LAMMPS built in $((SECONDS - t0))s: $LMP_PLUGIN_PREFIX/bin/lmp_plugin"
+}
+
+# ----------------------------------------------------------------- 5. build
 cache_get() { sed -n "s|^$1:[A-Z]*=||p" "$BUILD/CMakeCache.txt" 2>/dev/null | head -n 1; }
 
 configure_and_build() {
@@ -232,20 +280,23 @@ configure_and_build() {
     rm -rf "$BUILD/CMakeCache.txt" "$BUILD/CMakeFiles"
     need=1
   elif [[ "$(cache_get LAMMPS_SOURCE_DIR)" != "$LAMMPS_SRC" || "$(cache_get CMAKE_BUILD_TYPE)" != Release \
-          || ${#extra[@]} -gt 0 ]]; then
+          || "$(cache_get LAMMPS_PLUGIN_PREFIX)" != "$LMP_PLUGIN_PREFIX" || ${#extra[@]} -gt 0 ]]; then
     need=1
+  elif [[ $LMP_PLUGIN_STAMP -nt $BUILD/CMakeCache.txt ]]; then
+    need=1     # the PLUGIN-enabled LAMMPS was (re)built since the last configure
   fi
   if [[ $need -eq 1 ]]; then
     log "configuring (cmake, Ninja, Release)"
     cmake -S "$REPO" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-      -DLAMMPS_SOURCE_DIR="$LAMMPS_SRC" --no-warn-unused-cli "${extra[@]}" \
+      -DLAMMPS_SOURCE_DIR="$LAMMPS_SRC" -DLAMMPS_PLUGIN_PREFIX="$LMP_PLUGIN_PREFIX" \
+      --no-warn-unused-cli "${extra[@]}" \
       || die "cmake configure failed (see output above; build/CMakeFiles/CMakeError.log)"
   fi
   log "building (cmake --build build -j$JOBS)"
   cmake --build "$BUILD" -j "$JOBS" || die "build failed (see compiler output above)"
 }
 
-# ------------------------------------------------------------- 5. env file
+# ------------------------------------------------------------- 6. env file
 write_env_file() {
   local tmp="$BUILD/.hybrid-env.sh.$$"
   {
@@ -255,8 +306,11 @@ write_env_file() {
     printf 'export HYBRID_VENV=%q\n' "$VENV"
     printf 'export LAMMPS_SOURCE_DIR=%q\n' "$LAMMPS_SRC"
     printf 'export LAMMPS_SOURCE_VERSION=%q\n' "$LAMMPS_VERSION"
+    printf 'export LAMMPS_PLUGIN_PREFIX=%q\n' "$LMP_PLUGIN_PREFIX"
     printf 'case ":$PATH:" in *:%q:*) ;; *) export PATH=%q:"$PATH" ;; esac\n' \
       "$BUILD/mpm_solver" "$BUILD/mpm_solver"
+    printf 'case ":$PATH:" in *:%q:*) ;; *) export PATH=%q:"$PATH" ;; esac\n' \
+      "$BUILD/lammps_fix_hybrid" "$BUILD/lammps_fix_hybrid"
     if [[ $EUID -eq 0 ]]; then
       echo "# running as root: Open MPI refuses root without these"
       echo "export OMPI_ALLOW_RUN_AS_ROOT=1"
@@ -277,6 +331,7 @@ if ! flock -n 9; then log "waiting for another setup run (lock $CACHE/.setup.loc
 ensure_packages
 ensure_lammps_source
 ensure_venv
+ensure_plugin_lammps
 flock -u 9
 
 # ...and one build at a time per build directory.
@@ -287,5 +342,6 @@ write_env_file
 flock -u 8
 
 log "LAMMPS_SOURCE_DIR=$LAMMPS_SRC (lammps $LAMMPS_VERSION)"
+log "PLUGIN-enabled LAMMPS: $LMP_PLUGIN_PREFIX/bin/lmp_plugin"
 log "env: source $BUILD/hybrid-env.sh"
 log "done in ${SECONDS}s"

@@ -1,15 +1,18 @@
-// mpm_solver: runs a pure-MPM scene from a TOML scene file.
+// mpm_solver: runs a pure-MPM scene from a TOML scene file, or (--coupled) serves as the
+// continuum side of a coupled run with LAMMPS (mpm/coupled.hpp).
 #include <omp.h>
 #include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <fstream>
 #include <string>
 
 #include "coupler/version.hpp"
 #include "mpm/config.hpp"
+#include "mpm/coupled.hpp"
 #include "mpm/solver.hpp"
 
 namespace {
@@ -24,6 +27,8 @@ struct Options {
   bool check_only = false;
   long max_steps = 0;
   std::string summary_path;
+  bool coupled = false;
+  double peer_timeout = 600;
 };
 
 /// Peak resident memory of this process, bytes.
@@ -68,7 +73,8 @@ int run_scene(const mpm::Scene& scene, const Options& opt) {
 int main(int argc, char** argv) {
   CLI::App app{"mpm_solver: explicit material point method for dry granular continua (2D and 3D)"};
   Options opt;
-  app.add_option("scene", opt.scene_path, "scene file (TOML); keys are listed below")->required()->check(CLI::ExistingFile);
+  app.add_option("scene", opt.scene_path, "scene file (TOML); keys are listed below (not with --coupled)")
+      ->check(CLI::ExistingFile);
   app.add_option("-o,--output", opt.output_dir, "output directory (overrides [output] directory)");
   app.add_option("-t,--threads", opt.threads, "OpenMP threads (default: OMP_NUM_THREADS or all cores)")
       ->check(CLI::PositiveNumber);
@@ -78,9 +84,40 @@ int main(int argc, char** argv) {
   app.add_option("--max-steps", opt.max_steps, "stop after this many steps (benchmarks)")->check(CLI::PositiveNumber);
   app.add_option("--summary", opt.summary_path, "write run figures (steps, wall time, rate, peak memory) as JSON");
   app.add_flag("--check", opt.check_only, "read the scene, seed it, print its size and stable step, and exit");
+  auto* coupled = app.add_flag("--coupled", opt.coupled,
+                               "continuum side of a coupled run with LAMMPS: start in the same mpirun as LAMMPS "
+                               "(tools/hybrid_launch.py); no scene file; see docs/fix_hybrid_mpm.md");
+  app.add_option("--timeout", opt.peer_timeout,
+                 "with --coupled: seconds to wait for the handshake from fix hybrid/mpm (default 600; 0 = forever)")
+      ->check(CLI::NonNegativeNumber)
+      ->needs(coupled);
   app.set_version_flag("--version", std::string("mpm_solver ") + coupler::release_version());
   app.footer("\nSCENE FILE KEYS\n\n" + mpm::config_reference());
   CLI11_PARSE(app, argc, argv);
+
+  if (opt.coupled) {
+    if (!opt.scene_path.empty()) {
+      std::fprintf(stderr, "mpm_solver: error: --coupled takes no scene file (got %s)\n", opt.scene_path.c_str());
+      return 2;
+    }
+    mpm::CoupledOptions copt;
+    copt.hello_timeout = opt.peer_timeout;
+    copt.quiet = opt.quiet;
+    return mpm::run_coupled(copt);
+  }
+  if (opt.scene_path.empty()) {
+    std::fprintf(stderr, "mpm_solver: error: a scene file is required (or --coupled)\nRun with --help for more information.\n");
+    return 106;  // CLI11's exit code for a missing required argument, as before
+  }
+  // Started by mpirun next to other programs without --coupled: they would wait for this
+  // process in MPI_Comm_split forever, so refuse loudly (mpirun then stops the job).
+  if (const char* apps = std::getenv("OMPI_NUM_APP_CTX"); apps != nullptr && std::atoi(apps) > 1) {
+    std::fprintf(stderr,
+                 "mpm_solver: error: started by mpirun in an MPMD job (%s programs) but without --coupled; "
+                 "tools/hybrid_launch.py composes the command\n",
+                 apps);
+    return 2;
+  }
 
   try {
     mpm::Scene scene = mpm::load_scene(opt.scene_path);

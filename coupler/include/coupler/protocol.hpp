@@ -1,0 +1,322 @@
+#pragma once
+// Wire protocol between the DEM host (LAMMPS with fix hybrid/mpm) and the MPM process
+// (mpm_solver --coupled). No LAMMPS types here: any DEM host can use it.
+//
+// Launch: one MPMD job, `mpirun -np P <dem> : -np 1 mpm_solver --coupled`. Every program
+// splits MPI_COMM_WORLD by a fixed colour (kDemColor / kMpmColor; lmp_hybrid does it in its
+// main, a stock LAMMPS does it with `-mpicolor 0`, mpm_solver with kMpmColor) and then calls
+// connect_dem / connect_mpm with its local communicator.
+//
+// Connection, bounded at every step (no blocking MPI call waits on the other program
+// before it has answered):
+//   1. each side finds the other program's leader: the lowest MPI_COMM_WORLD rank outside
+//      its own local communicator (local group arithmetic, no collective);
+//   2. the DEM leader sends a Hello over MPI_COMM_WORLD; the MPM leader, which polls for it,
+//      checks it and answers a HelloReply (ok, or an error text naming both versions);
+//   3. only after an accepted Hello do both sides call MPI_Intercomm_create; all further
+//      messages travel over that intercommunicator (class Link).
+// Every receive polls (MPI_Iprobe + short sleep) and throws PeerError after a timeout.
+//
+// End of the job: every program enters MPI_Barrier(MPI_COMM_WORLD) exactly once, just before
+// MPI_Finalize. LAMMPS's own main does this when started with -mpicolor (normal end and after
+// a caught error alike); lmp_hybrid does the same (dem_end_of_job, or the finalize hook after a
+// Debian LAMMPS error). mpm_solver enters that barrier in a helper thread from the start, so it
+// notices at once when LAMMPS ends - in particular when it ends on an error without having
+// told the MPM process (see mpm_solver/src/coupled.cpp).
+//
+// Messages are fixed-layout structs sent as bytes: both programs run on the same
+// architecture and are built from the same release; kProtocolVersion guards the layouts.
+#include <mpi.h>
+
+#include <atomic>
+#include <cstdint>
+#include <cstring>
+#include <initializer_list>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "coupler/version.hpp"
+
+namespace coupler {
+
+/// Colours with which the programs split MPI_COMM_WORLD (LAMMPS: `-mpicolor 0`).
+inline constexpr int kDemColor = 0;
+inline constexpr int kMpmColor = 1;
+
+/// Message tags. Hello/HelloReply/Abort-before-connect travel over MPI_COMM_WORLD, the
+/// rest over the intercommunicator. Values are far from anything LAMMPS uses.
+enum Tag : int {
+  kTagHello = 7301,       ///< DEM -> MPM, Hello (MPI_COMM_WORLD)
+  kTagHelloReply = 7302,  ///< MPM -> DEM, HelloReply (MPI_COMM_WORLD)
+  kTagIntercomm = 7303,   ///< tag of MPI_Intercomm_create
+  kTagStep = 7310,        ///< DEM -> MPM, StepHeader (+ grain data in later protocol versions)
+  kTagStepAck = 7311,     ///< MPM -> DEM, StepAck
+  kTagFinish = 7320,      ///< DEM -> MPM, Finish: the coupled run is over, MPM exits 0
+  kTagAbort = 7330,       ///< DEM -> MPM, AbortNote: DEM stopped on an error, MPM exits 1
+};
+
+/// Human-readable name of a tag, for messages.
+const char* tag_name(int tag);
+
+inline constexpr int kTextSize = 256;
+inline constexpr int kVersionSize = 32;
+
+/// DEM -> MPM: the first message. Units are SI ("si" in LAMMPS).
+struct Hello {
+  std::int32_t protocol = kProtocolVersion;
+  char release[kVersionSize] = {};   ///< coupler::release_version() of the DEM side
+  char host[kVersionSize] = {};      ///< e.g. "LAMMPS 29 Sep 2021"
+  char units[8] = {};                ///< must be "si"
+  std::int32_t dimension = 3;
+  std::int32_t dem_ranks = 1;
+  std::int32_t model = 0;            ///< ModelId
+  std::int32_t mpm_every = 1;        ///< DEM steps per exchange
+  double cell = 0;                   ///< grid cell size, m
+  double dt = 0;                     ///< DEM time step, s
+  double reply_timeout = 30;         ///< s the DEM side waits for each MPM reply
+  double idle_timeout = 600;         ///< s the MPM side waits for the next DEM message (0 = forever)
+  double box_lo[3] = {0, 0, 0};      ///< DEM simulation box, m
+  double box_hi[3] = {0, 0, 0};
+  std::int64_t step = 0;             ///< DEM step at connection
+};
+
+/// MPM -> DEM: answer to Hello.
+struct HelloReply {
+  std::int32_t protocol = kProtocolVersion;
+  char release[kVersionSize] = {};
+  std::int32_t ok = 0;
+  std::int32_t mpm_ranks = 1;
+  char message[kTextSize] = {};      ///< error text when !ok, a greeting when ok
+};
+
+/// DEM -> MPM, every mpm_every steps. Grain data (n_grains records) follow in later versions.
+struct StepHeader {
+  std::int64_t step = 0;
+  double time = 0;
+  double dt = 0;
+  std::int64_t n_grains = 0;
+};
+
+/// MPM -> DEM, answer to StepHeader.
+struct StepAck {
+  std::int64_t step = 0;
+  std::int32_t status = 0;           ///< 0 = ok; otherwise message holds the error
+  char message[kTextSize] = {};
+};
+
+/// DEM -> MPM: normal end of the coupled run.
+struct Finish {
+  std::int64_t step = 0;
+  std::int64_t exchanges = 0;
+};
+
+/// DEM -> MPM: the DEM side is stopping on an error (sent from its MPI_Finalize hook).
+struct AbortNote {
+  char reason[kTextSize] = {};
+};
+
+/// Constitutive model the MPM side uses for the coupled material.
+enum ModelId : std::int32_t { kModelDruckerPrager = 0, kModelMuI = 1 };
+const char* model_name(int model);
+
+/// The peer does not answer, vanished, or refused the connection. what() is a complete,
+/// user-facing sentence.
+class PeerError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The peer did not answer in time (or the connection broke): it may be hung, so the caller
+/// must not wait for it in MPI_Finalize (call MPI_Abort instead).
+class PeerTimeout : public PeerError {
+ public:
+  using PeerError::PeerError;
+};
+
+/// The DEM side ended (error or end of input) before it connected; what() holds its reason.
+class PeerEnded : public PeerError {
+ public:
+  using PeerError::PeerError;
+};
+
+/// Copies `s` into a fixed char field, always NUL-terminated (truncates).
+template <std::size_t N>
+void set_text(char (&dst)[N], const std::string& s) {
+  const std::size_t n = s.size() < N - 1 ? s.size() : N - 1;
+  for (std::size_t i = 0; i < n; ++i) dst[i] = s[i];
+  for (std::size_t i = n; i < N; ++i) dst[i] = '\0';
+}
+template <std::size_t N>
+std::string get_text(const char (&src)[N]) {
+  std::size_t n = 0;
+  while (n < N && src[n] != '\0') ++n;
+  return std::string(src, n);
+}
+
+/// Owns one intercommunicator; frees it on destruction (unless MPI is already finalized).
+/// Errors on it are returned, not fatal (MPI_ERRORS_RETURN), so that callers can report them.
+class Intercomm {
+ public:
+  Intercomm() = default;
+  explicit Intercomm(MPI_Comm comm);
+  ~Intercomm();
+  Intercomm(const Intercomm&) = delete;
+  Intercomm& operator=(const Intercomm&) = delete;
+  Intercomm(Intercomm&& o) noexcept : comm_(o.comm_) { o.comm_ = MPI_COMM_NULL; }
+  Intercomm& operator=(Intercomm&& o) noexcept;
+  MPI_Comm get() const { return comm_; }
+  explicit operator bool() const { return comm_ != MPI_COMM_NULL; }
+  int remote_size() const;
+
+ private:
+  MPI_Comm comm_ = MPI_COMM_NULL;
+};
+
+/// Lowest MPI_COMM_WORLD rank that is not in `local`, or -1 if every rank is in `local`.
+/// Local computation on groups: no communication, cannot hang.
+int first_world_rank_outside(MPI_Comm local);
+
+/// A received message: tag and raw bytes (sizes are checked by the reader).
+struct Message {
+  int tag = 0;
+  std::vector<char> data;
+  template <class T>
+  bool fits() const {
+    return data.size() == sizeof(T);
+  }
+  /// The payload as T; throws PeerError if the size differs.
+  template <class T>
+  T as() const {
+    static_assert(std::is_trivially_copyable_v<T>);
+    if (!fits<T>())
+      throw PeerError("protocol error: a message (tag " + std::to_string(tag) + ") has " +
+                      std::to_string(data.size()) + " bytes, expected " + std::to_string(sizeof(T)) +
+                      " (are both programs from the same release?)");
+    T t;
+    std::memcpy(static_cast<void*>(&t), data.data(), sizeof(T));
+    return t;
+  }
+  /// The leading 32-bit field (the protocol version of Hello / HelloReply), or -1.
+  int leading_int() const {
+    std::int32_t v = -1;
+    if (data.size() >= sizeof v) std::memcpy(&v, data.data(), sizeof v);
+    return v;
+  }
+};
+
+/// Waits (MPI_Iprobe polling with short sleeps) at most `timeout_s` (<= 0: forever) for a
+/// message from `source` on `comm`, receives it and returns it. Throws PeerTimeout on timeout
+/// ("no reply from <peer> within 30 s while waiting for <what>; ...") or an MPI error, and
+/// PeerError if the message's tag is not one of `tags`.
+/// If `peer_ended` is given and becomes true while nothing has arrived, it keeps polling for
+/// a short grace period and then throws PeerEnded ("<peer> ended while ... waiting for <what>").
+Message recv_message(MPI_Comm comm, int source, std::initializer_list<int> tags, double timeout_s,
+                     const std::string& peer, const std::string& what,
+                     const std::atomic<bool>* peer_ended = nullptr);
+
+/// Sends `bytes` to `dest` on `comm` and waits (polling) at most `timeout_s` for the send to
+/// complete; throws PeerError naming `what` on timeout or MPI error.
+void send_bytes(MPI_Comm comm, int dest, int tag, const void* data, int bytes, double timeout_s,
+                const std::string& what);
+
+/// recv_message into `data` (exactly `bytes` expected); returns the tag.
+int recv_bytes(MPI_Comm comm, int source, std::initializer_list<int> tags, void* data, int bytes,
+               double timeout_s, const std::string& peer, const std::string& what);
+
+template <class T>
+void send_msg(MPI_Comm comm, int dest, int tag, const T& msg, double timeout_s, const std::string& what) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  send_bytes(comm, dest, tag, &msg, static_cast<int>(sizeof(T)), timeout_s, what);
+}
+
+/// One side's view of an established connection. Only the leader (local rank 0) of each
+/// side talks; non-leaders hold an empty Link apart from the intercommunicator.
+class Link {
+ public:
+  enum class State { kConnected, kFinished, kAborted, kUnresponsive };
+
+  Link(Intercomm comm, bool leader, double reply_timeout, std::string peer_name);
+
+  bool leader() const { return leader_; }
+  MPI_Comm comm() const { return comm_.get(); }
+  int remote_size() const { return comm_.remote_size(); }
+  State state() const { return state_; }
+  double reply_timeout() const { return reply_timeout_; }
+  const std::string& peer_name() const { return peer_name_; }
+  long exchanges() const { return exchanges_; }
+  /// What the peer said when the connection was accepted (its greeting).
+  const std::string& peer_info() const { return peer_info_; }
+  void set_peer_info(std::string s) { peer_info_ = std::move(s); }
+
+  /// DEM leader: sends the step header and waits for the ack (reply timeout).
+  StepAck step(const StepHeader& h);
+  /// DEM leader: normal end. Idempotent.
+  void finish(std::int64_t step);
+  /// DEM leader: best effort notice that the DEM side stops on an error (waits <= 2 s).
+  void abort_note(const std::string& reason) noexcept;
+  /// Marks the peer unresponsive (after a PeerError), so that the finalize hook aborts the job.
+  void mark_unresponsive() { state_ = State::kUnresponsive; }
+  void mark(State s) { state_ = s; }
+  void count_exchange() { ++exchanges_; }
+
+ private:
+  Intercomm comm_;
+  bool leader_;
+  double reply_timeout_;
+  std::string peer_name_;
+  State state_ = State::kConnected;
+  long exchanges_ = 0;
+  std::string peer_info_;
+};
+
+/// DEM side, collective over `local` (all DEM ranks): finds the MPM leader, handshakes and
+/// creates the intercommunicator. Throws PeerError on every rank of `local` alike (the
+/// leader's outcome is broadcast), with a message naming the cause.
+std::unique_ptr<Link> connect_dem(MPI_Comm local, Hello hello);
+
+/// MPM side, collective over `local` (all MPM ranks): waits at most `hello_timeout_s` for
+/// the Hello, validates it with `check` (returns "" if acceptable, else the error text),
+/// replies, and creates the intercommunicator. Returns the accepted Hello through `hello`.
+/// Throws PeerError when nothing arrives in time, when the DEM side sent an AbortNote
+/// instead (it stopped before connecting), or when `check` rejected the Hello.
+/// `peer_ended` as in recv_message.
+std::unique_ptr<Link> connect_mpm(MPI_Comm local, double hello_timeout_s, Hello& hello,
+                                  const std::string& greeting,
+                                  std::string (*check)(const Hello&),
+                                  const std::atomic<bool>* peer_ended = nullptr);
+
+// ----------------------------------------------------------------------------------------
+// The one process-wide handle (the only global state of the coupling): the DEM program's
+// current Link and local communicator, registered so that the MPI_Finalize hook can tell the
+// MPM process why the DEM side stops. Set by the DEM host (fix hybrid/mpm, lmp_hybrid).
+
+/// Registers the DEM side's local communicator (LAMMPS's world) and installs, once per
+/// process, a hook that runs at the very start of MPI_Finalize (an attribute delete
+/// callback on MPI_COMM_SELF, as the MPI standard provides). At finalize the hook
+///   - peer unresponsive: calls MPI_Abort(MPI_COMM_WORLD, 1), because MPI_Finalize would
+///     wait for the hung peer forever;
+///   - otherwise sends what dem_end_of_job sends (an AbortNote unless the coupled run
+///     finished) and, if the host program leaves the end-of-job barrier to the hook
+///     (set_world_barrier_by_hook) and it has not happened yet, enters it.
+/// Idempotent; later calls only refresh the communicator data.
+void install_dem_finalize_hook(MPI_Comm local);
+/// lmp_hybrid: its LAMMPS library (Debian's, without exceptions) calls MPI_Finalize directly
+/// on errors, so the hook must enter the end-of-job MPI_COMM_WORLD barrier. A stock LAMMPS
+/// main enters it itself (default: false).
+void set_world_barrier_by_hook(bool by_hook);
+/// DEM host's orderly end (lmp_hybrid after its input is done): on the leader, an AbortNote
+/// to the MPM process if the coupled run did not finish (reason below when it never
+/// connected), then MPI_Barrier(MPI_COMM_WORLD) on all DEM ranks. Call once, before
+/// MPI_Finalize; collective over the DEM ranks.
+void dem_end_of_job();
+/// The DEM side's current link (nullptr if none) - set by the DEM host.
+Link* peer();
+void set_peer(Link* link);
+/// Text that the finalize hook sends when the DEM side ends before connecting; a DEM host
+/// that knows better (lmp_hybrid after a normal end) may set it.
+void set_unconnected_exit_reason(const std::string& reason);
+
+}  // namespace coupler

@@ -1,0 +1,196 @@
+#include "mpm/coupled.hpp"
+
+#include <mpi.h>
+#include <pthread.h>
+#include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <thread>
+
+#include "coupler/protocol.hpp"
+#include "coupler/version.hpp"
+
+namespace mpm {
+
+namespace {
+
+/// Parameters of the DEM side this MPM side cannot work with ("" if acceptable).
+std::string check_hello(const coupler::Hello& h) {
+  const std::string units = coupler::get_text(h.units);
+  if (units != "si") return "fix hybrid/mpm runs with units '" + units + "', mpm_solver needs units si";
+  if (h.dimension != 2 && h.dimension != 3)
+    return "dimension " + std::to_string(h.dimension) + " is not supported (2 or 3)";
+  if (!(h.cell > 0)) return "the grid cell size must be > 0 (got " + std::to_string(h.cell) + ")";
+  if (!(h.dt > 0)) return "the DEM time step must be > 0 (got " + std::to_string(h.dt) + ")";
+  if (h.model != coupler::kModelDruckerPrager && h.model != coupler::kModelMuI)
+    return "unknown constitutive model id " + std::to_string(h.model);
+  if (h.mpm_every < 1) return "the exchange interval must be >= 1 step";
+  return "";
+}
+
+void say(const CoupledOptions& opt, const std::string& line) {
+  if (opt.quiet) return;
+  std::printf("mpm_solver: %s\n", line.c_str());
+  std::fflush(stdout);
+}
+
+void error_line(const std::string& line) {
+  std::fprintf(stderr, "mpm_solver: error: %s\n", line.c_str());
+  std::fflush(stderr);
+  std::fflush(stdout);
+}
+
+/// Lowest scheduling priority for the calling thread.
+void lower_priority() {
+  sched_param param{};
+  param.sched_priority = 0;
+  if (pthread_setschedparam(pthread_self(), SCHED_IDLE, &param) != 0)
+    setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 19);
+}
+
+/// The end-of-job MPI_Barrier(MPI_COMM_WORLD) (coupler/protocol.hpp), entered by a helper
+/// thread at start-up: `done` turns true once LAMMPS has entered it too, i.e. LAMMPS is ending.
+/// Open MPI busy-polls inside MPI_Barrier, so the thread runs with the idle scheduling policy
+/// (SCHED_IDLE; nice 19 if that is refused): it takes only CPU time nobody else wants.
+class EndOfJobBarrier {
+ public:
+  EndOfJobBarrier() : thread_([this] {
+    lower_priority();
+    MPI_Barrier(MPI_COMM_WORLD);
+    done_ = true;
+  }) {}
+  ~EndOfJobBarrier() {
+    if (thread_.joinable()) thread_.join();
+  }
+  const std::atomic<bool>* flag() const { return &done_; }
+  /// Waits for LAMMPS to reach the barrier; false after `timeout_s` (<= 0: forever).
+  bool wait(double timeout_s) {
+    const auto t0 = std::chrono::steady_clock::now();
+    while (!done_) {
+      if (timeout_s > 0 && std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > timeout_s)
+        return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    thread_.join();
+    return true;
+  }
+
+ private:
+  std::atomic<bool> done_{false};
+  std::thread thread_;
+};
+
+/// Serves step headers until Finish (returns 0) or an AbortNote (returns 1).
+int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions& opt, const std::atomic<bool>* ended) {
+  const double idle = hello.idle_timeout;
+  long steps = 0;
+  for (;;) {
+    const coupler::Message m = coupler::recv_message(
+        link.comm(), 0, {coupler::kTagStep, coupler::kTagFinish, coupler::kTagAbort}, idle, "LAMMPS",
+        "the next message from fix hybrid/mpm (a step header or the finish message; the fix keyword 'idle' sets "
+        "this wait)",
+        ended);
+    if (m.tag == coupler::kTagStep) {
+      const auto h = m.as<coupler::StepHeader>();
+      coupler::StepAck ack;
+      ack.step = h.step;
+      ack.status = 0;
+      if (h.n_grains != 0) {
+        ack.status = 1;
+        coupler::set_text(ack.message, "grain data are not supported by this mpm_solver (protocol " +
+                                           std::to_string(coupler::kProtocolVersion) + ")");
+      }
+      coupler::send_msg(link.comm(), 0, coupler::kTagStepAck, ack, link.reply_timeout(),
+                        "the acknowledgement of step " + std::to_string(h.step) + " to LAMMPS");
+      link.count_exchange();
+      ++steps;
+    } else if (m.tag == coupler::kTagFinish) {
+      const auto f = m.as<coupler::Finish>();
+      say(opt, "coupled run finished at LAMMPS step " + std::to_string(f.step) + " after " + std::to_string(steps) +
+                   " exchange(s)");
+      link.mark(coupler::Link::State::kFinished);
+      return 0;
+    } else {
+      const auto note = m.as<coupler::AbortNote>();
+      error_line("LAMMPS stopped the coupled run after " + std::to_string(steps) +
+                 " exchange(s): " + coupler::get_text(note.reason));
+      link.mark(coupler::Link::State::kAborted);
+      return 1;
+    }
+  }
+}
+
+}  // namespace
+
+int run_coupled(const CoupledOptions& opt) {
+  int provided = 0;
+  MPI_Init_thread(nullptr, nullptr, MPI_THREAD_MULTIPLE, &provided);
+  int me = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &me);
+  if (provided < MPI_THREAD_MULTIPLE) {
+    error_line("the MPI library does not provide MPI_THREAD_MULTIPLE, which --coupled needs");
+    MPI_Abort(MPI_COMM_WORLD, 2);
+  }
+  // Collective over MPI_COMM_WORLD; LAMMPS's side does the same with kDemColor.
+  MPI_Comm local = MPI_COMM_NULL;
+  MPI_Comm_split(MPI_COMM_WORLD, coupler::kMpmColor, me, &local);
+  int nlocal = 1;
+  MPI_Comm_size(local, &nlocal);
+  if (nlocal != 1) {
+    int lme = 0;
+    MPI_Comm_rank(local, &lme);
+    if (lme == 0)
+      error_line("mpm_solver --coupled runs on exactly one MPI rank for now (got " + std::to_string(nlocal) +
+                 "): use '-np 1' for mpm_solver in the mpirun command");
+    MPI_Abort(MPI_COMM_WORLD, 2);
+  }
+  say(opt, std::string("coupled mode, release ") + coupler::release_version() + ", protocol " +
+               std::to_string(coupler::kProtocolVersion) + ", pid " + std::to_string(getpid()) +
+               ", MPI_COMM_WORLD rank " + std::to_string(me) + "; waiting for fix hybrid/mpm");
+
+  int rc = 0;
+  bool finished = false;
+  {
+    EndOfJobBarrier end_of_job;
+    try {
+      coupler::Hello hello;
+      const std::string greeting = std::string("mpm_solver ") + coupler::release_version() + " (pid " +
+                                   std::to_string(getpid()) + ") ready";
+      auto link = coupler::connect_mpm(local, opt.hello_timeout, hello, greeting, &check_hello, end_of_job.flag());
+      say(opt, "handshake ok with " + link->peer_info() + " on " + std::to_string(hello.dem_ranks) +
+                   " rank(s), release " + coupler::get_text(hello.release) + ": dimension " +
+                   std::to_string(hello.dimension) + ", cell " + std::to_string(hello.cell) + " m, dt " +
+                   std::to_string(hello.dt) + " s, model " + coupler::model_name(hello.model) + ", exchange every " +
+                   std::to_string(hello.mpm_every) + " step(s)");
+      rc = serve(*link, hello, opt, end_of_job.flag());
+      finished = rc == 0;
+    } catch (const coupler::PeerTimeout& e) {
+      // LAMMPS may be hung: MPI_Finalize would wait for it forever.
+      error_line(std::string(e.what()) + "; aborting the MPI job");
+      MPI_Abort(MPI_COMM_WORLD, 1);
+    } catch (const coupler::PeerEnded& e) {
+      error_line(e.what());
+      rc = 1;
+    } catch (const coupler::PeerError& e) {
+      error_line(e.what());
+      rc = 2;
+    }
+    // After Finish LAMMPS may go on with uncoupled runs for as long as it likes; after an
+    // error it reaches the end-of-job barrier within moments.
+    if (!end_of_job.wait(finished ? 0.0 : 60.0)) {
+      error_line("LAMMPS did not reach the end of the job within 60 s after the coupling failed; aborting the MPI job");
+      MPI_Abort(MPI_COMM_WORLD, rc != 0 ? rc : 1);
+    }
+  }
+  MPI_Comm_free(&local);
+  MPI_Finalize();
+  return rc;
+}
+
+}  // namespace mpm

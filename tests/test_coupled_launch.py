@@ -1,0 +1,362 @@
+"""Coupled LAMMPS + MPM launch, phase 1: build, MPMD launch, handshake, failure handling.
+
+Every run has a subprocess timeout, so a hang is a test failure, never a hung suite. Runs use
+tools/hybrid_launch.py (or tools/mpirun.sh directly) on input_decks/hybrid/handshake.lmp,
+copied into the test's tmp_path so that its processes can be told apart from any others.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import BUILD, REPO
+
+DECK = REPO / "input_decks" / "hybrid" / "handshake.lmp"
+LAUNCH = REPO / "tools" / "hybrid_launch.py"
+MPIRUN = REPO / "tools" / "mpirun.sh"
+# Generous bound for a failure to stop the whole job (the goal is "within seconds").
+STOP_WITHIN = 20.0
+
+
+def env() -> dict:
+    e = dict(os.environ, HYBRID_BUILD_DIR=str(BUILD), OMP_NUM_THREADS="1")
+    if os.geteuid() == 0:
+        e.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    return e
+
+
+def deck_copy(tmp_path: Path, edit=None, extra: str = "") -> Path:
+    text = DECK.read_text()
+    if edit is not None:
+        text = edit(text)
+    deck = tmp_path / "deck.lmp"
+    deck.write_text(text + extra)
+    return deck
+
+
+def launch(*args: str, timeout: float = 120, cwd: Path | None = None) -> tuple[subprocess.CompletedProcess, float]:
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, str(LAUNCH), *args], capture_output=True, text=True, timeout=timeout,
+                          env=env(), cwd=cwd)
+    return proc, time.monotonic() - t0
+
+
+def output(proc) -> str:
+    return proc.stdout + proc.stderr
+
+
+def replace_fix_line(text: str, new_args: str) -> str:
+    """Replaces the keywords of the fix hybrid/mpm line."""
+    out = re.sub(r"^(fix\s+couple\s+all\s+hybrid/mpm)\s.*$", rf"\1 {new_args}", text, flags=re.M)
+    assert out != text
+    return out
+
+
+# ------------------------------------------------------------------------------ success
+@pytest.mark.parametrize("np_", [1, 2])
+def test_lmp_hybrid_handshake_steps_and_clean_finish(tmp_path, hybrid_programs, np_):
+    deck = deck_copy(tmp_path)
+    log = tmp_path / "log.lammps"
+    proc, _ = launch("-np", str(np_), str(deck), "-var", "nsteps", "200", "-var", "every", "10", "-log", str(log))
+    text = output(proc)
+    assert proc.returncode == 0, text
+    assert f"handshake ok with LAMMPS 29 Sep 2021 on {np_} rank(s)" in text
+    assert "coupled run finished at LAMMPS step 200 after 20 exchange(s)" in text
+    lammps_log = log.read_text()
+    assert "fix hybrid/mpm: handshake ok with the MPM process (1 rank(s)): mpm_solver" in lammps_log
+    assert "protocol 1" in lammps_log and "cell 0.01, model drucker_prager" in lammps_log
+    assert "fix hybrid/mpm: finished the coupled run after 20 exchange(s)" in lammps_log
+    # f_couple (thermo column) counts the exchanges
+    last = [ln.split() for ln in lammps_log.splitlines() if re.match(r"^\s+200\s+630\s", ln)]
+    assert last and float(last[-1][-1]) == 20.0, lammps_log
+
+
+@pytest.mark.parametrize("np_", [1, 2])
+def test_plugin_route_handshake_steps_and_clean_finish(tmp_path, hybrid_plugin, np_):
+    deck = deck_copy(tmp_path)
+    log = tmp_path / "log.lammps"
+    proc, _ = launch("-np", str(np_), "--plugin", str(deck), "-var", "nsteps", "100", "-var", "every", "5",
+                     "-log", str(log))
+    text = output(proc)
+    assert proc.returncode == 0, text
+    assert "Loading plugin: fix hybrid/mpm" in text
+    assert f"handshake ok with LAMMPS 29 Sep 2021 on {np_} rank(s)" in text
+    assert "coupled run finished at LAMMPS step 100 after 20 exchange(s)" in text
+    assert "fix hybrid/mpm: handshake ok with the MPM process" in log.read_text()
+
+
+def test_launcher_composes_both_routes(tmp_path, hybrid_programs, hybrid_plugin):
+    deck = deck_copy(tmp_path)
+    proc, _ = launch("-np", "3", "--dry-run", str(deck), "-var", "nsteps", "5")
+    assert proc.returncode == 0, output(proc)
+    cmd = proc.stdout.strip()
+    assert cmd.startswith(str(MPIRUN) + " -np 3 " + hybrid_programs["lmp_hybrid"] + f" -in {deck} -var nsteps 5 : ")
+    assert cmd.endswith("-np 1 " + hybrid_programs["mpm_solver"] + " --coupled")
+    proc, _ = launch("-np", "2", "--plugin", "--dry-run", str(deck))
+    assert proc.returncode == 0, output(proc)
+    assert f"{hybrid_plugin[0]} -m 0 -in " in proc.stdout
+
+
+# ------------------------------------------------------------------------- input errors
+@pytest.mark.parametrize("fix_args, message", [
+    ("cell 0.01 bogus 3", "unknown keyword 'bogus'"),
+    ("cell -0.01", "keyword 'cell' must be > 0"),
+    ("model drucker_prager", "keyword 'cell' (the MPM grid cell size) is required"),
+    ("cell 0.01 model granite", "keyword 'model' must be drucker_prager or mu_i, not 'granite'"),
+    ("cell 0.01 timeout", "keyword 'timeout' needs a value"),
+    ("cell 0.01 every 0", "keyword 'every' needs a positive integer"),
+])
+def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_programs, fix_args, message):
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, fix_args))
+    proc, elapsed = launch("-np", "2", str(deck), "-log", "none", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "ERROR: Illegal fix hybrid/mpm command: " + message in text, text
+    # the MPM process is told at once instead of waiting for its handshake timeout
+    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+def test_bad_fix_line_through_the_plugin(tmp_path, hybrid_plugin):
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, "cell 0.01 bogus 3"))
+    proc, elapsed = launch("-np", "2", "--plugin", str(deck), "-log", "none", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "ERROR: Illegal fix hybrid/mpm command: unknown keyword 'bogus'" in text, text
+    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+@pytest.mark.parametrize("plugin", [False, True], ids=["lmp_hybrid", "plugin"])
+def test_lammps_error_during_the_coupled_run_stops_the_mpm_process(tmp_path, hybrid_programs, plugin, request):
+    if plugin:
+        request.getfixturevalue("hybrid_plugin")
+    deck = deck_copy(tmp_path, extra="\nno_such_command 1\n")
+    proc, elapsed = launch("-np", "2", *(["--plugin"] if plugin else []), str(deck), "-var", "nsteps", "50",
+                           "-log", "none", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "ERROR: Unknown command: no_such_command" in text
+    assert "mpm_solver: error: LAMMPS stopped the coupled run after 5 exchange(s)" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+@pytest.mark.parametrize("plugin", [False, True], ids=["lmp_hybrid", "plugin"])
+def test_deck_without_the_fix_ends_the_mpm_process_with_a_reason(tmp_path, hybrid_programs, plugin, request):
+    if plugin:
+        request.getfixturevalue("hybrid_plugin")
+    deck = deck_copy(tmp_path, lambda t: re.sub(r"^fix\s+couple.*$", "", t, flags=re.M).replace(" f_couple", ""))
+    proc, elapsed = launch("-np", "1", *(["--plugin"] if plugin else []), str(deck), "-var", "nsteps", "20",
+                           "-log", "none", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+def test_version_mismatch_is_an_error_on_both_sides_naming_both_versions(tmp_path, hybrid_programs):
+    deck = deck_copy(tmp_path)
+    cmd = [str(MPIRUN), "-np", "1", hybrid_programs["lmp_hybrid"], "-in", str(deck), "-log", "none",
+           ":", "-np", "1", "env", "HYBRID_COUPLER_FAKE_RELEASE=9.9.9", hybrid_programs["mpm_solver"], "--coupled"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60, env=env())
+    text = output(proc)
+    assert proc.returncode != 0, text
+    both = "fix hybrid/mpm is release 0.1.0 (protocol 1), mpm_solver is release 9.9.9 (protocol 1)"
+    assert f"mpm_solver: error: version mismatch: {both}" in text, text
+    assert f"ERROR: Fix hybrid/mpm: the MPM process refused the connection: version mismatch: {both}" in text
+
+
+# ---------------------------------------------------------------------------- no peer
+def test_lmp_hybrid_without_mpm_process_is_a_clear_error(tmp_path, hybrid_programs):
+    deck = deck_copy(tmp_path)
+    t0 = time.monotonic()
+    proc = subprocess.run([str(MPIRUN), "-np", "2", hybrid_programs["lmp_hybrid"], "-in", str(deck), "-log", "none"],
+                          capture_output=True, text=True, timeout=60, env=env())
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "ERROR: Fix hybrid/mpm: no MPM process in this MPI job" in text
+    assert "mpm_solver --coupled" in text
+    assert time.monotonic() - t0 < STOP_WITHIN
+
+
+def test_mpm_solver_coupled_without_lammps_is_a_clear_error(hybrid_programs):
+    proc = subprocess.run([hybrid_programs["mpm_solver"], "--coupled"], capture_output=True, text=True, timeout=60,
+                          env=env())
+    assert proc.returncode == 2, output(proc)
+    assert "no LAMMPS process in this MPI job" in proc.stderr
+
+
+def test_mpm_solver_in_an_mpmd_job_without_coupled_refuses(tmp_path, hybrid_programs):
+    deck = deck_copy(tmp_path)
+    scene = tmp_path / "scene.toml"    # refused before it is read
+    scene.write_text("dimension = 2\n")
+    cmd = [str(MPIRUN), "-np", "1", hybrid_programs["lmp_hybrid"], "-in", str(deck), "-log", "none",
+           ":", "-np", "1", hybrid_programs["mpm_solver"], str(scene)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60, env=env())
+    assert proc.returncode != 0
+    assert "without --coupled" in output(proc)
+
+
+# -------------------------------------------------------------- peer death and hangs
+class Job:
+    """A coupled job in the background; its output collected by a thread."""
+
+    def __init__(self, tmp_path: Path, *vars_: str, np_: int = 2):
+        self.deck = deck_copy(tmp_path)
+        args = [sys.executable, str(LAUNCH), "-np", str(np_), str(self.deck), "-log", "none",
+                "-var", "nsteps", "100000000", *vars_]
+        self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env(),
+                                     start_new_session=True)
+        self.lines: list[str] = []
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.lines.append(line)
+
+    @property
+    def text(self) -> str:
+        return "".join(self.lines)
+
+    def wait_for(self, pattern: str, timeout: float = 60) -> re.Match:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            m = re.search(pattern, self.text)
+            if m:
+                return m
+            if self.proc.poll() is not None and not self.reader.is_alive():
+                break
+            time.sleep(0.05)
+        raise AssertionError(f"no '{pattern}' in the output:\n{self.text}")
+
+    def running(self) -> int:
+        """Waits until both sides are coupled and exchanging; returns the mpm_solver pid."""
+        pid = int(self.wait_for(r"mpm_solver: coupled mode, .* pid (\d+)").group(1))
+        self.wait_for(r"fix hybrid/mpm: handshake ok")
+        self.wait_for(r"mpm_solver: handshake ok")
+        time.sleep(1.0)   # well into the run
+        assert self.proc.poll() is None, self.text
+        return pid
+
+    def lammps_pids(self) -> list[int]:
+        """LAMMPS ranks of this job: lmp_hybrid processes whose command line names our deck."""
+        pids = []
+        for p in Path("/proc").iterdir():
+            if not p.name.isdigit():
+                continue
+            try:
+                argv = (p / "cmdline").read_bytes().split(b"\0")
+            except OSError:
+                continue
+            if argv and argv[0].endswith(b"lmp_hybrid") and str(self.deck).encode() in argv:
+                pids.append(int(p.name))
+        return pids
+
+    def finish(self, timeout: float) -> tuple[int, float]:
+        t0 = time.monotonic()
+        try:
+            rc = self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            raise AssertionError(f"the job did not stop within {timeout} s:\n{self.text}")
+        self.reader.join(timeout=10)
+        return rc, time.monotonic() - t0
+
+    def kill(self):
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait(timeout=30)
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.fixture
+def job_factory(tmp_path, hybrid_programs):
+    jobs: list[Job] = []
+
+    def make(*vars_: str, np_: int = 2) -> Job:
+        job = Job(tmp_path, *vars_, np_=np_)
+        jobs.append(job)
+        return job
+
+    yield make
+    for job in jobs:
+        job.kill()
+
+
+def test_killing_the_mpm_process_stops_the_job(job_factory):
+    job = job_factory("-var", "every", "1")
+    mpm_pid = job.running()
+    lammps = job.lammps_pids()
+    assert len(lammps) == 2, job.text
+    os.kill(mpm_pid, signal.SIGKILL)
+    rc, elapsed = job.finish(STOP_WITHIN)
+    assert rc != 0, job.text
+    assert "exited on signal 9 (Killed)" in job.text      # mpirun's message
+    assert "rank 2 is mpm_solver" in job.text              # hybrid_launch's translation
+    time.sleep(0.5)
+    assert not any(alive(p) for p in lammps), "LAMMPS ranks survived"
+
+
+def test_killing_lammps_stops_the_mpm_process(job_factory):
+    job = job_factory("-var", "every", "1")
+    mpm_pid = job.running()
+    lammps = job.lammps_pids()
+    assert lammps, job.text
+    os.kill(lammps[0], signal.SIGKILL)
+    rc, elapsed = job.finish(STOP_WITHIN)
+    assert rc != 0, job.text
+    assert "exited on signal 9 (Killed)" in job.text
+    time.sleep(0.5)
+    assert not alive(mpm_pid), "mpm_solver survived"
+
+
+def test_hung_mpm_process_times_out_in_lammps(job_factory):
+    job = job_factory("-var", "every", "1", "-var", "timeout", "3")
+    mpm_pid = job.running()
+    os.kill(mpm_pid, signal.SIGSTOP)
+    try:
+        rc, elapsed = job.finish(STOP_WITHIN)
+    finally:
+        if alive(mpm_pid):
+            os.kill(mpm_pid, signal.SIGKILL)
+    assert rc != 0, job.text
+    # stopped while LAMMPS waited for an acknowledgement, or while it sent a step header
+    assert re.search(r"ERROR: Fix hybrid/mpm: (no reply from the MPM process within 3 s while waiting for the "
+                     r"acknowledgement of step \d+; it may have crashed or hung - check its output|could not "
+                     r"deliver the step header of step \d+ to the MPM process within 3 s)", job.text), job.text
+    assert "fix hybrid/mpm: the MPM process does not respond; aborting the MPI job" in job.text
+
+
+def test_hung_lammps_times_out_in_the_mpm_process(job_factory):
+    job = job_factory("-var", "every", "1", "-var", "idle", "3")
+    job.running()
+    lammps = job.lammps_pids()
+    for pid in lammps:
+        os.kill(pid, signal.SIGSTOP)
+    try:
+        rc, elapsed = job.finish(STOP_WITHIN)
+    finally:
+        for pid in lammps:
+            if alive(pid):
+                os.kill(pid, signal.SIGKILL)
+    assert rc != 0, job.text
+    # stopped while the MPM process waited for the next step, or while it sent an acknowledgement
+    assert re.search(r"mpm_solver: error: (no reply from LAMMPS within 3 s while waiting for the next message "
+                     r"from fix hybrid/mpm|could not deliver the acknowledgement of step \d+ to LAMMPS within 3 s)"
+                     r".*; aborting the MPI job", job.text), job.text
