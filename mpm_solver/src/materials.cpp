@@ -210,9 +210,7 @@ Mat<D> elastic_state_for_stress(const MaterialModel& m, const Mat<D>& stress) {
   const double G = m.shear_modulus, lam = m.lame_lambda;
   const double tr_eps = stress.trace() / (D * lam + 2.0 * G);
   const Mat<D> eps = (stress - lam * tr_eps * Mat<D>::Identity()) / (2.0 * G);
-  Eigen::SelfAdjointEigenSolver<Mat<D>> eig(eps);
-  return eig.eigenvectors() * (2.0 * eig.eigenvalues()).array().exp().matrix().asDiagonal() *
-         eig.eigenvectors().transpose();
+  return tensor_exp<D>(2.0 * eps);
 }
 
 template void update_drucker_prager<2>(const MaterialModel&, const Mat<2>&, Mat<2>&, Mat<2>&, double&);

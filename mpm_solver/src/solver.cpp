@@ -223,13 +223,8 @@ void Solver<D>::p2g(double dt) {
   const int n_threads = active_threads();
 
   // Clear what the last step touched.
-  if (!touched_lo_.empty()) {
-    const std::size_t lo = touched_lo_[0], hi = touched_hi_[0];
-    std::fill(grid_.mass.begin() + lo, grid_.mass.begin() + hi, 0.0);
-    std::fill(grid_.momentum.begin() + lo, grid_.momentum.begin() + hi, Vec<D>::Zero());
-  }
-  touched_lo_.assign(n_threads + 1, grid_.num_nodes());
-  touched_hi_.assign(n_threads + 1, 0);
+  std::fill(grid_.mass.begin() + active_lo_, grid_.mass.begin() + active_hi_, 0.0);
+  std::fill(grid_.momentum.begin() + active_lo_, grid_.momentum.begin() + active_hi_, Vec<D>::Zero());
 
 #pragma omp parallel num_threads(n_threads)
   {
@@ -262,13 +257,11 @@ void Solver<D>::p2g(double dt) {
     }
     tg.lo = lo;
     tg.hi = std::max(lo, hi);
-    touched_lo_[t] = tg.lo;
-    touched_hi_[t] = tg.hi;
   }
   std::size_t lo = grid_.num_nodes(), hi = 0;
   for (int t = 0; t < n_threads; ++t) {
-    lo = std::min(lo, touched_lo_[t]);
-    hi = std::max(hi, touched_hi_[t]);
+    lo = std::min(lo, thread_grids_[t].lo);
+    hi = std::max(hi, thread_grids_[t].hi);
   }
   hi = std::max(lo, hi);
   // Sum the other threads' contributions into the main grid in thread order
@@ -284,8 +277,8 @@ void Solver<D>::p2g(double dt) {
         }
       }
   }
-  touched_lo_.assign(1, lo);
-  touched_hi_.assign(1, hi);
+  active_lo_ = lo;
+  active_hi_ = hi;
 }
 
 template <int D>
@@ -332,7 +325,7 @@ void Solver<D>::apply_boundaries(std::size_t node, Vec<D>& v) const {
 
 template <int D>
 void Solver<D>::grid_update(double dt) {
-  const std::size_t lo = touched_lo_[0], hi = touched_hi_[0];
+  const std::size_t lo = active_lo_, hi = active_hi_;
   const double keep = std::max(0.0, 1.0 - scene_.time.damping * dt);
 #pragma omp parallel for schedule(static) num_threads(active_threads())
   for (std::size_t k = lo; k < hi; ++k) {

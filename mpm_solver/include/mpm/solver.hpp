@@ -85,7 +85,9 @@ class Solver {
     std::size_t lo = 0, hi = 0;
   };
   std::vector<ThreadGrid> thread_grids_;
-  std::vector<std::size_t> touched_lo_, touched_hi_;
+  /// Flat node range the last P2G touched (all threads): what the grid
+  /// update visits and the next P2G clears.
+  std::size_t active_lo_ = 0, active_hi_ = 0;
 };
 
 /// What a run reports as it goes.
