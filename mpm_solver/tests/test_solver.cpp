@@ -342,3 +342,38 @@ TEST(Boundaries, MovingIntruderPushesMaterialAndIsNotPenetrated) {
   EXPECT_EQ(deep_inside, 0) << "no material more than a cell and a half inside the intruder";
   EXPECT_GT(moving_down, 50) << "the intruder drives material ahead of it";
 }
+
+TEST(Seeding, DiskAndCylinderHoldTheirVolume) {
+  // Points on the lattice inside a disk (2D) or cylinder (3D) sum to its volume.
+  for (int dim : {2, 3}) {
+    mpm::Scene scene = base_scene(dim);
+    scene.grid.cell_size = 0.01;
+    mpm::Block b;
+    b.material = "sand";
+    b.shape = mpm::Shape::Cylinder;
+    b.center = {0.5, 0.5, 0.5};
+    b.radius = 0.2;
+    b.axis = 1;
+    b.height = 0.3;
+    b.points_per_cell = dim == 2 ? 9 : 27;
+    scene.blocks.push_back(b);
+    const double exact = dim == 2 ? M_PI * 0.04 : M_PI * 0.04 * 0.3;
+    double volume = 0, mass = 0;
+    auto sum = [&](const auto& solver) {
+      for (std::size_t i = 0; i < solver.points().size(); ++i)
+        volume += solver.points().volume(i), mass += solver.points().mass[i];
+      for (const auto& x : solver.points().x) {
+        auto r = x;
+        r.array() -= 0.5;
+        if (dim == 3) {
+          EXPECT_LE(std::abs(r[1]), 0.15);
+          r[1] = 0;
+        }
+        EXPECT_LT(r.norm(), 0.2);
+      }
+    };
+    if (dim == 2) sum(mpm::Solver<2>(scene)); else sum(mpm::Solver<3>(scene));
+    EXPECT_NEAR(volume, exact, 0.01 * exact) << dim << "D";
+    EXPECT_NEAR(mass, scene.materials[0].density * volume, 1e-10 * mass);  // summation round-off over ~1e6 points
+  }
+}
