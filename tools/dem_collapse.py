@@ -72,7 +72,7 @@ class DemResult:
     wall_time: float               # s, this run (collapse, plus preparation if not cached)
     prepared: bool                 # True if the settled column was built in this run
     published: tuple = ()
-    profile: list = field(default_factory=list)   # [(x_centre, surface height)] per bin
+    profile: list = field(default_factory=list)   # [(x_centre, surface height)] per bin, connected deposit only
     log: str = ""
 
     @property
@@ -196,7 +196,7 @@ def analyse(final: dict, initial: dict, aspect: float, width: float, d: float) -
         max_overlap_initial=max_overlap(initial, d),
         max_overlap_final=max_overlap(final, d),
         detached=int((~mask).sum()),
-        profile=surface_profile(x, y, r, 2 * d, float(edge.max())),
+        profile=surface_profile(x[mask], y[mask], r[mask], 2 * d, front),  # the deposit, as the runout
     )
 
 
