@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <map>
 #include <numeric>
 #include <sstream>
 
@@ -143,7 +142,6 @@ void Solver<D>::seed_block(const Block& block) {
   const std::size_t before = points_.size();
   const Vec<D> v0 = take<D>(block.velocity);
   const long total = count.template cast<long>().prod();
-  std::vector<Vec<D>> positions;
   for (long n = 0; n < total; ++n) {
     long rest = n;
     Vec<D> x;

@@ -36,11 +36,6 @@ struct Particles {
     plastic_strain.push_back(0.0);
     material.push_back(mat);
   }
-
-  /// Bytes held per point (for the memory benchmark).
-  static constexpr std::size_t bytes_per_point() {
-    return 2 * sizeof(Vec<D>) + 3 * sizeof(Mat<D>) + 4 * sizeof(double) + sizeof(std::uint16_t);
-  }
 };
 
 }  // namespace mpm
