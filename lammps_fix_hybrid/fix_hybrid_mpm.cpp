@@ -1,10 +1,16 @@
 /* ----------------------------------------------------------------------
    fix hybrid/mpm (hybrid-granular project)
 
-   Phase 1: connection to the MPM process (mpm_solver --coupled), handshake,
-   a step header every N steps acknowledged by the MPM process, and a clean
-   finish or a bounded failure. The physics coupling (grain <-> grid
-   transfers, velocity agreement, zone changes) is not implemented yet.
+   Couples the grains of LAMMPS to a continuum in the MPM process
+   (mpm_solver --coupled) as in DESIGN.md section 5:
+   - at the first step of the first run, grains in the continuum regions
+     become material points that carry exactly their mass, momentum and
+     angular momentum (and their Love-Weber stress); grains in hybrid cells
+     keep a share `weight` of their mass, the points take the rest;
+   - every N steps, coupled grains send their weighted mass and momentum to
+     the grid nodes, the MPM process makes both sides agree on a common node
+     velocity (momentum moves between the sides, the total is unchanged) and
+     the grains take their velocity update.
    Wire protocol: coupler/include/coupler/protocol.hpp. Docs:
    docs/fix_hybrid_mpm.md.
 ------------------------------------------------------------------------- */
@@ -12,25 +18,59 @@
 #include "fix_hybrid_mpm.h"
 
 #include "atom.h"
+#include "atom_vec.h"
 #include "comm.h"
+#include "compute.h"
 #include "domain.h"
 #include "error.h"
+#include "group.h"
+#include "math_const.h"
+#include "memory.h"
+#include "modify.h"
+#include "region.h"
 #include "update.h"
 #include "utils.h"
 #include "version.h"
 
+#include "coupler/conversion.hpp"
 #include "coupler/protocol.hpp"
+#include "coupler/transfer.hpp"
 #include "coupler/version.hpp"
+#include "coupler/zones.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
+#include <map>
 #include <string>
 
 using namespace LAMMPS_NS;
 using namespace FixConst;
+using MathConst::MY_PI;
 
 namespace {
-const char *const kKeywords = "cell, timeout, idle, model, every";
+
+const char *const kKeywords =
+    "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
+    "grain_density, critical_packing, wall, cfl, pic, points_per_cell, inertia, output, every, timeout, idle";
+
+// Thermo vector entries (docs/fix_hybrid_mpm.md)
+enum {
+  kVecExchanges, kVecCoupledGrains, kVecPoints, kVecSharedNodes, kVecMismatch, kVecSubsteps, kVecMpmDt,
+  kVecMass, kVecPx, kVecPy, kVecPz, kVecLx, kVecLy, kVecLz, kVecContinuumKE, kVecSize
+};
+
+template <int D>
+using Vec = Eigen::Matrix<double, D, 1>;
+
+template <int D>
+coupler::GridGeometry<D> box_grid(const Domain *domain, double cell)
+{
+  return coupler::padded_grid<D>(Eigen::Map<const Vec<D>>(domain->boxlo), Eigen::Map<const Vec<D>>(domain->boxhi),
+                                 cell);
 }
+
+}    // namespace
 
 /* ---------------------------------------------------------------------- */
 
@@ -43,49 +83,131 @@ Fix *FixHybridMPM::creator(LAMMPS *lmp, int narg, char **arg)
 
 FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), cell(-1.0), reply_timeout(30.0), idle_timeout(600.0),
-    model(coupler::kModelDruckerPrager), every(1), exchanges(0), restart_exchanges(0), last_step(0)
+    model(coupler::kModelDruckerPrager), every(1), hybrid_width(2), inertia(-1.0),
+    settings(new coupler::ContinuumSettings), diameter_given(false), density_given(false), exchanges(0),
+    restart_exchanges(0), last_step(0), weight(nullptr), converted(false), convert_pending(false),
+    stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1)
 {
   // fix ID group hybrid/mpm keyword value ...
 
+  auto number = [&](const std::string &key, const std::string &val) {
+    if (!utils::is_double(val)) illegal(fmt::format("keyword '{}' needs a number, not '{}'", key, val));
+    return utils::numeric(FLERR, val.c_str(), false, lmp);
+  };
+  auto positive = [&](const std::string &key, const std::string &val, const char *what) {
+    const double v = number(key, val);
+    if (!(v > 0.0)) illegal(fmt::format("keyword '{}' must be > 0 ({}), not {}", key, what, val));
+    return v;
+  };
+  auto integer = [&](const std::string &key, const std::string &val) {
+    if (!utils::is_integer(val) || utils::inumeric(FLERR, val.c_str(), false, lmp) <= 0)
+      illegal(fmt::format("keyword '{}' needs a positive integer, not '{}'", key, val));
+    return utils::inumeric(FLERR, val.c_str(), false, lmp);
+  };
+  coupler::ContinuumSettings &c = *settings;
   int iarg = 3;
   while (iarg < narg) {
     const std::string key = arg[iarg];
-    if (key != "cell" && key != "timeout" && key != "idle" && key != "model" && key != "every")
-      illegal(fmt::format("unknown keyword '{}' (known keywords: {})", key, kKeywords));
     if (iarg + 2 > narg) illegal(fmt::format("keyword '{}' needs a value", key));
     const std::string val = arg[iarg + 1];
-    if (key == "model") {
+    int used = 2;
+    if (key == "cell") cell = positive(key, val, "the MPM grid cell size");
+    else if (key == "continuum") region_ids.push_back(val);
+    else if (key == "hybrid_width") hybrid_width = integer(key, val);
+    else if (key == "weight") {
+      c.grain_weight = number(key, val);
+      if (!(c.grain_weight > 0.0 && c.grain_weight < 1.0))
+        illegal(fmt::format("keyword 'weight' (the share of a hybrid cell's mass its grains keep) must be "
+                            "between 0 and 1, not {}", val));
+    } else if (key == "model") {
       if (val == "drucker_prager") model = coupler::kModelDruckerPrager;
       else if (val == "mu_i") model = coupler::kModelMuI;
       else illegal(fmt::format("keyword 'model' must be drucker_prager or mu_i, not '{}'", val));
-    } else if (key == "every") {
-      if (!utils::is_integer(val) || utils::inumeric(FLERR, val.c_str(), false, lmp) <= 0)
-        illegal(fmt::format("keyword 'every' needs a positive integer, not '{}'", val));
-      every = utils::inumeric(FLERR, val.c_str(), false, lmp);
-    } else {
-      if (!utils::is_double(val))
-        illegal(fmt::format("keyword '{}' needs a number, not '{}'", key, val));
-      const double v = utils::numeric(FLERR, val.c_str(), false, lmp);
-      if (key == "cell") {
-        if (v <= 0.0) illegal(fmt::format("keyword 'cell' must be > 0, not {}", val));
-        cell = v;
-      } else if (key == "timeout") {
-        if (v <= 0.0) illegal(fmt::format("keyword 'timeout' must be > 0 seconds, not {}", val));
-        reply_timeout = v;
-      } else {    // idle
-        if (v < 0.0) illegal(fmt::format("keyword 'idle' must be >= 0 seconds (0 = wait forever), not {}", val));
-        idle_timeout = v;
-      }
-    }
-    iarg += 2;
+    } else if (key == "youngs") c.youngs_modulus = positive(key, val, "Pa");
+    else if (key == "poisson") {
+      c.poisson_ratio = number(key, val);
+      if (!(c.poisson_ratio > -1.0 && c.poisson_ratio < 0.5))
+        illegal(fmt::format("keyword 'poisson' must be in (-1, 0.5), not {}", val));
+    } else if (key == "friction") {
+      c.friction_angle_deg = number(key, val);
+      if (!(c.friction_angle_deg >= 0.0 && c.friction_angle_deg < 90.0))
+        illegal(fmt::format("keyword 'friction' (friction angle, degrees) must be in [0, 90), not {}", val));
+    } else if (key == "mu_s") c.mu_s = positive(key, val, "static friction of mu(I)");
+    else if (key == "mu_2") c.mu_2 = positive(key, val, "limit friction of mu(I)");
+    else if (key == "I0") c.I0 = positive(key, val, "inertial number scale of mu(I)");
+    else if (key == "diameter") c.grain_diameter = positive(key, val, "grain diameter, m"), diameter_given = true;
+    else if (key == "grain_density") c.grain_density = positive(key, val, "kg/m^3"), density_given = true;
+    else if (key == "critical_packing") {
+      c.critical_packing = number(key, val);
+      if (!(c.critical_packing > 0.0 && c.critical_packing < 1.0))
+        illegal(fmt::format("keyword 'critical_packing' must be in (0, 1), not {}", val));
+    } else if (key == "wall") {
+      if (val == "sticky") c.wall_contact = coupler::kWallSticky;
+      else if (val == "slip") c.wall_contact = coupler::kWallSlip;
+      else if (val == "friction") {
+        if (iarg + 3 > narg) illegal("keyword 'wall friction' needs the friction coefficient");
+        c.wall_contact = coupler::kWallFriction;
+        c.wall_friction = number("wall friction", arg[iarg + 2]);
+        if (c.wall_friction < 0.0) illegal("keyword 'wall friction' needs a coefficient >= 0");
+        used = 3;
+      } else illegal(fmt::format("keyword 'wall' must be sticky, slip or friction MU, not '{}'", val));
+    } else if (key == "cfl") {
+      c.cfl = number(key, val);
+      if (!(c.cfl > 0.0 && c.cfl <= 1.0)) illegal(fmt::format("keyword 'cfl' must be in (0, 1], not {}", val));
+    } else if (key == "pic") {
+      c.pic = number(key, val);
+      if (!(c.pic >= 0.0 && c.pic <= 1.0)) illegal(fmt::format("keyword 'pic' must be in [0, 1], not {}", val));
+    } else if (key == "points_per_cell") {
+      c.points_per_axis = integer(key, val);
+      if (c.points_per_axis > 4) illegal("keyword 'points_per_cell' (points per cell and axis) must be 1 to 4");
+    } else if (key == "inertia") inertia = positive(key, val, "I = inertia m r^2");
+    else if (key == "output") {
+      if (iarg + 3 > narg) illegal("keyword 'output' needs a file name and an interval in exchanges");
+      output_path = val;
+      c.output_every = integer("output", arg[iarg + 2]);
+      if (output_path.size() >= sizeof(c.output_path))
+        illegal(fmt::format("keyword 'output': the file name is longer than {} characters", sizeof(c.output_path) - 1));
+      coupler::set_text(c.output_path, output_path);
+      used = 3;
+    } else if (key == "every") every = integer(key, val);
+    else if (key == "timeout") reply_timeout = positive(key, val, "seconds");
+    else if (key == "idle") {
+      idle_timeout = number(key, val);
+      if (idle_timeout < 0.0)
+        illegal(fmt::format("keyword 'idle' must be >= 0 seconds (0 = wait forever), not {}", val));
+    } else
+      illegal(fmt::format("unknown keyword '{}' (known keywords: {})", key, kKeywords));
+    iarg += used;
   }
   if (cell <= 0.0) illegal("keyword 'cell' (the MPM grid cell size) is required");
+  for (const auto &rid : region_ids)
+    if (domain->find_region(rid) < 0)
+      illegal(fmt::format("continuum region '{}' does not exist (define it with the region command first)", rid));
+  if (inertia < 0.0) inertia = domain->dimension == 2 ? 0.5 : 0.4;
 
   nevery = every;
   scalar_flag = 1;           // f_ID = number of completed exchanges with the MPM process
   global_freq = 1;           // a count, valid on any step
   extscalar = 0;
+  vector_flag = 1;           // f_ID[i]: hybrid counts, residual and totals (docs)
+  size_vector = kVecSize;
+  extvector = 0;
   restart_global = 1;
+  restart_peratom = 1;
+  force_reneighbor = 1;      // the conversion deletes grains at a pre_exchange
+  next_reneighbor = -1;
+  maxexchange = 1;
+
+  grow_arrays(atom->nmax);
+  atom->add_callback(Atom::GROW);
+  atom->add_callback(Atom::RESTART);
+  for (int i = 0; i < atom->nlocal; i++) weight[i] = 1.0;
+
+  // per-atom stress*volume for the Love-Weber stress of new material points
+  if (!region_ids.empty()) {
+    stress_id = utils::strdup(std::string(id) + "_hybrid_stress");
+    modify->add_compute(fmt::format("{} all stress/atom NULL virial", stress_id));
+  }
 
   // tell the MPM process at MPI_Finalize if LAMMPS stops on an error (see coupler)
   coupler::install_dem_finalize_hook(world);
@@ -95,6 +217,11 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
 
 FixHybridMPM::~FixHybridMPM()
 {
+  atom->delete_callback(id, Atom::GROW);
+  atom->delete_callback(id, Atom::RESTART);
+  memory->destroy(weight);
+  if (stress_id && modify->find_compute(stress_id) >= 0) modify->delete_compute(stress_id);
+  delete[] stress_id;
   if (!link) return;
   // normal end of the coupled run (unfix, clear, end of input): the MPM process exits 0
   try {
@@ -114,7 +241,8 @@ FixHybridMPM::~FixHybridMPM()
 int FixHybridMPM::setmask()
 {
   int mask = 0;
-  mask |= END_OF_STEP;     // per-step exchange (placeholder for the coupling)
+  mask |= PRE_EXCHANGE;    // conversion of the continuum regions' grains (first step)
+  mask |= END_OF_STEP;     // the coupling exchange
   mask |= POST_RUN;
   return mask;
 }
@@ -126,13 +254,49 @@ void FixHybridMPM::init()
   if (!atom->sphere_flag) error->all(FLERR, "Fix hybrid/mpm requires atom style sphere");
   if (strcmp(update->unit_style, "si") != 0)
     error->all(FLERR, "Fix hybrid/mpm requires units si (the MPM process works in SI units)");
-  if (!link) connect();
+  if (atom->molecular != Atom::ATOMIC)
+    error->all(FLERR, "Fix hybrid/mpm does not support molecular systems (grains only)");
+  if (!region_ids.empty()) {
+    for (int d = 0; d < domain->dimension; d++)
+      if (domain->boundary[d][0] != 1 || domain->boundary[d][1] != 1)
+        error->all(FLERR, fmt::format("Fix hybrid/mpm with continuum regions needs fixed boundaries ('f') in "
+                                      "x, y{}: the continuum's grid covers the box and has walls at its faces "
+                                      "(use boundary f f {})",
+                                      domain->dimension == 3 ? ", z" : "", domain->dimension == 3 ? "f" : "p"));
+    for (const auto &rid : region_ids)
+      if (domain->find_region(rid) < 0)
+        error->all(FLERR, fmt::format("Fix hybrid/mpm: continuum region '{}' no longer exists", rid));
+  }
+  if (update->whichflag == 1 && strcmp(update->integrate_style, "verlet") != 0)
+    error->all(FLERR, "Fix hybrid/mpm needs run_style verlet");
+}
+
+/* ---------------------------------------------------------------------- */
+
+void FixHybridMPM::grain_defaults()
+{
+  // mu(I) needs the grain size and solid density; unless given, take them from the grains
+  double sums[3] = {0, 0, 0}, all[3];
+  const bool two_d = domain->dimension == 2;
+  for (int i = 0; i < atom->nlocal; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    const double r = atom->radius[i];
+    const double volume = two_d ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r;
+    sums[0] += 2.0 * r;
+    sums[1] += atom->rmass[i] / std::max(weight[i], 1e-300);
+    sums[2] += volume;
+  }
+  MPI_Allreduce(sums, all, 3, MPI_DOUBLE, MPI_SUM, world);
+  const bigint n = group->count(igroup);
+  if (n > 0 && !diameter_given) settings->grain_diameter = all[0] / n;
+  if (all[2] > 0 && !density_given) settings->grain_density = all[1] / all[2];
 }
 
 /* ---------------------------------------------------------------------- */
 
 void FixHybridMPM::connect()
 {
+  grain_defaults();
   coupler::Hello hello;
   coupler::set_text(hello.host, fmt::format("LAMMPS {}", lmp->version));
   coupler::set_text(hello.units, update->unit_style);
@@ -148,6 +312,17 @@ void FixHybridMPM::connect()
     hello.box_hi[d] = domain->boxhi[d];
   }
   hello.step = update->ntimestep;
+  hello.time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
+  hello.continuum = *settings;
+  // gravity of the grains acts on the continuum too
+  for (int d = 0; d < 3; d++) hello.continuum.gravity[d] = 0.0;
+  for (int i = 0; i < modify->nfix; i++)
+    if (utils::strmatch(modify->fix[i]->style, "^gravity")) {
+      int dim = 0;
+      const auto *g = static_cast<const double *>(modify->fix[i]->extract("gvec", dim));
+      if (g)
+        for (int d = 0; d < 3; d++) hello.continuum.gravity[d] += g[d];
+    }
 
   try {
     link = coupler::connect_dem(world, hello);    // collective over world, same outcome on all ranks
@@ -162,49 +337,336 @@ void FixHybridMPM::connect()
                                     coupler::release_version(), cell, coupler::model_name(model), every));
 }
 
+/* ----------------------------------------------------------------------
+   zone of every grid cell from the continuum regions (same on all ranks)
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::compute_zones()
+{
+  std::vector<Region *> regions;
+  for (const auto &rid : region_ids) {
+    Region *r = domain->regions[domain->find_region(rid)];
+    r->prematch();
+    regions.push_back(r);
+  }
+  auto inside = [&](const auto &x) {
+    const double z = x.size() == 3 ? x[2] : 0.0;
+    for (Region *r : regions)
+      if (r->match(x[0], x[1], z)) return true;
+    return false;
+  };
+  if (domain->dimension == 2) {
+    const auto grid = box_grid<2>(domain, cell);
+    zones = coupler::zones_from_regions<2>(grid, Eigen::Map<const Vec<2>>(domain->boxlo),
+                                            Eigen::Map<const Vec<2>>(domain->boxhi), hybrid_width, inside);
+  } else {
+    const auto grid = box_grid<3>(domain, cell);
+    zones = coupler::zones_from_regions<3>(grid, Eigen::Map<const Vec<3>>(domain->boxlo),
+                                            Eigen::Map<const Vec<3>>(domain->boxhi), hybrid_width, inside);
+  }
+  if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
+  if (comm->me == 0) {
+    const auto n = coupler::zone_counts(zones);
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: grid of {} cells: {} continuum, {} hybrid, {} discrete\n",
+                                    zones.size(), n[coupler::kContinuum], n[coupler::kHybrid],
+                                    n[coupler::kDiscrete]));
+  }
+}
+
+int FixHybridMPM::zone_of(const double *x) const
+{
+  if (zones.empty()) return coupler::kDiscrete;
+  if (domain->dimension == 2) {
+    const auto grid = box_grid<2>(domain, cell);
+    return zones[coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, Eigen::Map<const Vec<2>>(x)))];
+  }
+  const auto grid = box_grid<3>(domain, cell);
+  return zones[coupler::cell_index<3>(grid, coupler::cell_of<3>(grid, Eigen::Map<const Vec<3>>(x)))];
+}
+
 /* ---------------------------------------------------------------------- */
 
 void FixHybridMPM::setup(int /*vflag*/)
 {
-  // nothing to exchange before the first step yet (phase 1)
+  if (!link) connect();
+  if (zones.empty()) compute_zones();
+  if (converted || region_ids.empty()) return;
+  // Love-Weber stress of the grains about to become points: per-atom virial of this
+  // (setup) step, kept by local index until the conversion at the next pre_exchange
+  // (atoms are neither sorted nor exchanged in between)
+  Compute *c = modify->compute[modify->find_compute(stress_id)];
+  c->compute_peratom();
+  setup_stress.assign(static_cast<std::size_t>(atom->nlocal) * 6, 0.0);
+  for (int i = 0; i < atom->nlocal; i++)
+    for (int k = 0; k < 6; k++) setup_stress[6 * i + k] = c->array_atom[i][k];
+  convert_pending = true;
+  next_reneighbor = update->ntimestep + 1;
+}
+
+/* ---------------------------------------------------------------------- */
+
+void FixHybridMPM::pre_exchange()
+{
+  if (!convert_pending || update->ntimestep != next_reneighbor) return;
+  if (domain->dimension == 2) convert<2>();
+  else convert<3>();
+  convert_pending = false;
+  converted = true;
+  setup_stress.clear();
+  setup_stress.shrink_to_fit();
 }
 
 /* ----------------------------------------------------------------------
-   per-step exchange: the leader sends a step header, the MPM process acks.
-   Grain data will follow the header in later protocol versions.
+   grains of continuum cells become material points, grains of hybrid cells
+   keep the share `weight` of their mass; the MPM process builds the points
+   from per-cell sums (mass, first moment, momentum, angular momentum,
+   stress*volume), so the totals carry over exactly
 ------------------------------------------------------------------------- */
+
+template <int D>
+void FixHybridMPM::convert()
+{
+  const auto grid = box_grid<D>(domain, cell);
+  const double w = settings->grain_weight;
+  double **x = atom->x, **v = atom->v, **omega = atom->omega;
+  double *rmass = atom->rmass, *radius = atom->radius;
+  int *mask = atom->mask;
+  const int nlocal = atom->nlocal;
+
+  std::map<std::size_t, coupler::CellMoments<D>> cells;
+  std::vector<int> remove(nlocal, 0);
+  bigint n_hybrid = 0;
+  for (int i = 0; i < nlocal; i++) {
+    if (!(mask[i] & groupbit) || weight[i] < 1.0) continue;
+    const Vec<D> xi = Eigen::Map<const Vec<D>>(x[i]);
+    const std::size_t c = coupler::cell_index<D>(grid, coupler::cell_of<D>(grid, xi));
+    const int z = zones[c];
+    if (z == coupler::kDiscrete) continue;
+    const double I = inertia * rmass[i] * radius[i] * radius[i];
+    coupler::Spin<D> spin;
+    if constexpr (D == 2) spin[0] = I * omega[i][2];
+    else spin = I * Eigen::Map<const Eigen::Vector3d>(omega[i]);
+    Eigen::Matrix<double, D, D> sv;
+    const double *s = &setup_stress[6 * i];    // xx yy zz xy xz yz
+    if constexpr (D == 2) sv << s[0], s[3], s[3], s[1];
+    else sv << s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2];
+    auto &m = cells[c];
+    m.cell = c;
+    m.add_grain(xi, Eigen::Map<const Vec<D>>(v[i]), rmass[i], spin, sv);
+    if (z == coupler::kContinuum) remove[i] = 1;
+    else {
+      rmass[i] *= w;    // the grain keeps its share; the points take the rest
+      weight[i] = w;
+      n_hybrid++;
+    }
+  }
+  std::vector<coupler::CellMoments<D>> records;
+  records.reserve(cells.size());
+  for (const auto &kv : cells) records.push_back(kv.second);
+
+  int status = 0;
+  std::string what;
+  coupler::StepAck ack;
+  try {
+    if (comm->me == 0) {
+      coupler::StepHeader h;
+      h.step = update->ntimestep;
+      h.time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
+      h.dt = update->dt;
+      h.kind = coupler::kStepConvert;
+      link->send_struct(0, coupler::kTagStep, h, "the conversion header");
+      link->send_array(0, coupler::kTagZones, zones, "the zone map");
+    }
+    link->send_array(0, coupler::kTagCells, records, "the grains of the continuum cells");
+    ack = link->receive(0, {coupler::kTagStepAck}, "the material points made from the grains")
+              .as<coupler::StepAck>();
+    if (ack.status != 0) status = 2, what = "the MPM process could not make material points from the grains: " +
+                                             coupler::get_text(ack.message);
+  } catch (const coupler::PeerError &e) {
+    status = 1;
+    what = e.what();
+  }
+  check_all(status, what);
+  *last_ack = ack;
+
+  // delete the grains that became points (as fix evaporate does)
+  bigint ndelete_local = 0, ndelete = 0, nhybrid = 0;
+  AtomVec *avec = atom->avec;
+  for (int i = nlocal - 1; i >= 0; i--)
+    if (remove[i]) {
+      avec->copy(atom->nlocal - 1, i, 1);
+      atom->nlocal--;
+      ndelete_local++;
+    }
+  MPI_Allreduce(&ndelete_local, &ndelete, 1, MPI_LMP_BIGINT, MPI_SUM, world);
+  MPI_Allreduce(&n_hybrid, &nhybrid, 1, MPI_LMP_BIGINT, MPI_SUM, world);
+  atom->natoms -= ndelete;
+  if (ndelete && atom->map_style != Atom::MAP_NONE) {
+    atom->nghost = 0;
+    atom->map_init();
+    atom->map_set();
+  }
+  if (comm->me == 0)
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: step {}: {} grains became {} material points, {} grains "
+                                    "are hybrid (weight {})\n",
+                                    update->ntimestep, ndelete, ack.points, nhybrid, w));
+}
+
+/* ---------------------------------------------------------------------- */
 
 void FixHybridMPM::end_of_step()
 {
-  int status = 0;
-  char what[coupler::kTextSize * 2] = {};
-  if (comm->me == 0) {
-    coupler::StepHeader h;
-    h.step = update->ntimestep;
-    h.time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
-    h.dt = update->dt;
-    h.n_grains = 0;
-    try {
-      const coupler::StepAck ack = link->step(h);
-      if (ack.status != 0) {
-        status = 2;
-        coupler::set_text(what, "the MPM process reported an error at step " + std::to_string(h.step) + ": " +
-                                    coupler::get_text(ack.message));
-      }
-    } catch (const coupler::PeerError &e) {
-      status = 1;
-      coupler::set_text(what, e.what());
-    }
-  }
-  last_step = update->ntimestep;
-  MPI_Bcast(&status, 1, MPI_INT, 0, world);
-  if (status != 0) {
-    MPI_Bcast(what, sizeof(what), MPI_CHAR, 0, world);
-    fail(FLERR, status, what);
-  }
-  exchanges++;
+  if (domain->dimension == 2) exchange<2>();
+  else exchange<3>();
 }
 
+/* ----------------------------------------------------------------------
+   one coupling exchange: coupled grains' weighted mass and momentum per node
+   go to the MPM process, the agreed node velocities come back
+------------------------------------------------------------------------- */
+
+template <int D>
+void FixHybridMPM::exchange()
+{
+  const auto grid = box_grid<D>(domain, cell);
+  double **x = atom->x, **v = atom->v;
+  double *rmass = atom->rmass;
+  int *mask = atom->mask;
+  const int nlocal = atom->nlocal;
+
+  // coupled grains: hybrid grains, and any grain of the group inside a hybrid or continuum cell
+  std::vector<int> index;
+  std::vector<double> xs, vs, ms;
+  for (int i = 0; i < nlocal; i++) {
+    if (!(mask[i] & groupbit)) continue;
+    if (weight[i] >= 1.0 && zone_of(x[i]) == coupler::kDiscrete) continue;
+    index.push_back(i);
+    xs.insert(xs.end(), x[i], x[i] + 3);
+    vs.insert(vs.end(), v[i], v[i] + 3);
+    ms.push_back(rmass[i]);
+  }
+  coupler::GrainView view;
+  view.count = index.size();
+  view.x = xs.data();
+  view.v = vs.data();
+  view.mass = ms.data();
+  const auto nodes = coupler::grains_to_nodes<D>(grid, view);
+  std::vector<coupler::NodeRecord> records(nodes.size());
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    records[k].node = nodes[k].node;
+    records[k].mass = nodes[k].mass;
+    for (int a = 0; a < D; ++a) records[k].momentum[a] = nodes[k].momentum[a];
+  }
+  bigint n_coupled_local = static_cast<bigint>(index.size()), n_coupled = 0;
+  MPI_Allreduce(&n_coupled_local, &n_coupled, 1, MPI_LMP_BIGINT, MPI_SUM, world);
+  coupled_grains = n_coupled;
+
+  const bool output_frame = settings->output_every > 0 && (exchanges % settings->output_every) == 0;
+  int status = 0;
+  std::string what;
+  coupler::StepAck ack;
+  std::vector<coupler::NodeUpdate> updates;
+  const std::string at_step = " of step " + std::to_string(update->ntimestep);
+  try {
+    if (comm->me == 0) {
+      coupler::StepHeader h;
+      h.step = update->ntimestep;
+      h.time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
+      h.dt = update->dt;
+      h.kind = coupler::kStepCouple;
+      h.output = output_frame ? 1 : 0;
+      h.n_grains = n_coupled;
+      link->send_struct(0, coupler::kTagStep, h, "the step header" + at_step);
+    }
+    link->send_array(0, coupler::kTagNodes, records, "the grain node sums" + at_step);
+    coupler::Message m = link->receive(0, {coupler::kTagNodeReply, coupler::kTagStepAck},
+                                       "the node velocities" + at_step);
+    if (m.tag == coupler::kTagNodeReply) {
+      updates = m.as_array<coupler::NodeUpdate>();
+      if (updates.size() != records.size())
+        throw coupler::PeerError(fmt::format("protocol error: {} node velocities for {} nodes", updates.size(),
+                                             records.size()));
+      apply_updates<D>(grid, view, nodes, updates, index);
+      if (output_frame) send_grains("the grains of the output frame" + at_step);
+      m = link->receive(0, {coupler::kTagStepAck}, "the acknowledgement" + at_step);
+    }
+    ack = m.as<coupler::StepAck>();
+    if (ack.status != 0)
+      status = 2, what = "the MPM process reported an error at step " + std::to_string(update->ntimestep) + ": " +
+                         coupler::get_text(ack.message);
+  } catch (const coupler::PeerError &e) {
+    status = 1;
+    what = e.what();
+  }
+  last_step = update->ntimestep;
+  check_all(status, what);
+
+  *last_ack = ack;
+  exchanges++;
+  link->count_exchange();
+}
+
+/* ----------------------------------------------------------------------
+   grain velocity updates from the agreed node velocities (coupler rule)
+------------------------------------------------------------------------- */
+
+template <int D>
+void FixHybridMPM::apply_updates(const coupler::GridGeometry<D> &grid, const coupler::GrainView &view,
+                                 const std::vector<coupler::NodeMomentum<D>> &nodes,
+                                 const std::vector<coupler::NodeUpdate> &updates, const std::vector<int> &index)
+{
+  std::vector<coupler::AgreedNode<D>> agreed(updates.size());
+  for (std::size_t k = 0; k < updates.size(); ++k)
+    for (int a = 0; a < D; ++a) {
+      agreed[k].velocity[a] = updates[k].velocity[a];
+      agreed[k].impulse_per_mass[a] = updates[k].impulse_per_mass[a];
+    }
+  std::vector<double> dv(index.size() * D);
+  coupler::grain_velocity_updates<D>(grid, view, nodes, agreed, settings->pic, dv.data());
+  double **v = atom->v;
+  for (std::size_t g = 0; g < index.size(); ++g)
+    for (int a = 0; a < D; ++a) v[index[g]][a] += dv[g * D + a];
+}
+
+/* ----------------------------------------------------------------------
+   this rank's grains for an output frame of the MPM process's file
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::send_grains(const std::string &what)
+{
+  const int nlocal = atom->nlocal;
+  std::vector<coupler::GrainRecord> grains(nlocal);
+  for (int i = 0; i < nlocal; i++) {
+    auto &g = grains[i];
+    g.id = atom->tag[i];
+    for (int a = 0; a < 3; a++) g.x[a] = atom->x[i][a], g.v[a] = atom->v[i][a];
+    g.radius = atom->radius[i];
+    g.mass = atom->rmass[i];
+    g.weight = weight[i];
+    g.zone = zone_of(atom->x[i]);
+  }
+  link->send_array(0, coupler::kTagGrains, grains, what);
+}
+
+/* ----------------------------------------------------------------------
+   collective outcome of an exchange: any rank's failure stops all ranks
+   with the message of the lowest failing rank
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::check_all(int status, const std::string &what)
+{
+  int worst = 0;
+  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, world);
+  if (worst == 0) return;
+  int mine = status != 0 ? comm->me : comm->nprocs, first = 0;
+  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, world);
+  char text[coupler::kTextSize * 2] = {};
+  if (comm->me == first) coupler::set_text(text, what);
+  MPI_Bcast(text, sizeof(text), MPI_CHAR, first, world);
+  int first_status = status;
+  MPI_Bcast(&first_status, 1, MPI_INT, first, world);
+  fail(FLERR, first_status, text);
+}
 /* ---------------------------------------------------------------------- */
 
 void FixHybridMPM::fail(const char *file, int line, int status, const char *what)
@@ -231,24 +693,71 @@ double FixHybridMPM::compute_scalar()
   return static_cast<double>(exchanges + restart_exchanges);
 }
 
+/* ----------------------------------------------------------------------
+   thermo vector: counts and residual of the last exchange, and the totals
+   of grains (their carried mass) plus material points; the continuum's part
+   is that of the last exchange, so the totals are exact on exchange steps
+------------------------------------------------------------------------- */
+
+double FixHybridMPM::compute_vector(int n)
+{
+  if (vector_step != update->ntimestep) fill_thermo_vector();
+  return vector_cache[n];
+}
+
+void FixHybridMPM::fill_thermo_vector()
+{
+  double local[7] = {0, 0, 0, 0, 0, 0, 0}, all[7];
+  double **x = atom->x, **v = atom->v, **omega = atom->omega;
+  for (int i = 0; i < atom->nlocal; i++) {
+    const double m = atom->rmass[i];
+    local[0] += m;
+    for (int a = 0; a < 3; a++) local[1 + a] += m * v[i][a];
+    const double I = inertia * m * atom->radius[i] * atom->radius[i];
+    local[4] += m * (x[i][1] * v[i][2] - x[i][2] * v[i][1]) + I * omega[i][0];
+    local[5] += m * (x[i][2] * v[i][0] - x[i][0] * v[i][2]) + I * omega[i][1];
+    local[6] += m * (x[i][0] * v[i][1] - x[i][1] * v[i][0]) + I * omega[i][2];
+  }
+  MPI_Allreduce(local, all, 7, MPI_DOUBLE, MPI_SUM, world);
+  const coupler::StepAck &a = *last_ack;
+  double *out = vector_cache;
+  out[kVecExchanges] = static_cast<double>(exchanges + restart_exchanges);
+  out[kVecCoupledGrains] = static_cast<double>(coupled_grains);
+  out[kVecPoints] = static_cast<double>(a.points);
+  out[kVecSharedNodes] = static_cast<double>(a.shared_nodes);
+  out[kVecMismatch] = a.mismatch;
+  out[kVecSubsteps] = a.substeps;
+  out[kVecMpmDt] = a.mpm_dt;
+  out[kVecMass] = all[0] + a.mass;
+  for (int d = 0; d < 3; d++) {
+    out[kVecPx + d] = all[1 + d] + a.momentum[d];
+    out[kVecLx + d] = all[4 + d] + a.angular[d];
+  }
+  out[kVecContinuumKE] = a.kinetic_energy;
+  vector_step = update->ntimestep;
+}
+
 /* ---------------------------------------------------------------------- */
 
 double FixHybridMPM::memory_usage()
 {
-  return static_cast<double>(sizeof(*this));
+  return static_cast<double>(sizeof(*this)) + atom->nmax * sizeof(double) + zones.size() +
+      setup_stress.size() * sizeof(double);
 }
 
 /* ----------------------------------------------------------------------
-   restart: cell size and exchange count only (the MPM state is not saved yet)
+   restart: settings, exchange count and whether the conversion happened
+   (the MPM state itself is not saved yet)
 ------------------------------------------------------------------------- */
 
 void FixHybridMPM::write_restart(FILE *fp)
 {
-  double list[3];
+  double list[4];
   int n = 0;
   list[n++] = cell;
   list[n++] = static_cast<double>(exchanges + restart_exchanges);
   list[n++] = static_cast<double>(every);
+  list[n++] = converted ? 1.0 : 0.0;
   if (comm->me == 0) {
     int size = n * sizeof(double);
     fwrite(&size, sizeof(int), 1, fp);
@@ -265,6 +774,66 @@ void FixHybridMPM::restart(char *buf)
     error->warning(FLERR, fmt::format("Fix hybrid/mpm: restart file has cell {}, the input says {}; using {}",
                                       list[0], cell, cell));
   restart_exchanges = static_cast<bigint>(list[1]);
+  if (list[3] != 0.0)
+    error->all(FLERR, "Fix hybrid/mpm: the restart file was written after grains became material points; "
+                      "restarting needs the MPM state too, which this version does not save yet - restart from "
+                      "a file written before the first coupled step");
+}
+
+/* ----------------------------------------------------------------------
+   per-atom weight: allocate, copy, exchange with atoms, restart
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::grow_arrays(int nmax)
+{
+  memory->grow(weight, nmax, "hybrid/mpm:weight");
+}
+
+void FixHybridMPM::copy_arrays(int i, int j, int /*delflag*/)
+{
+  weight[j] = weight[i];
+}
+
+void FixHybridMPM::set_arrays(int i)
+{
+  weight[i] = 1.0;
+}
+
+int FixHybridMPM::pack_exchange(int i, double *buf)
+{
+  buf[0] = weight[i];
+  return 1;
+}
+
+int FixHybridMPM::unpack_exchange(int nlocal, double *buf)
+{
+  weight[nlocal] = buf[0];
+  return 1;
+}
+
+int FixHybridMPM::pack_restart(int i, double *buf)
+{
+  buf[0] = 2;    // values for this fix, count included (LAMMPS convention)
+  buf[1] = weight[i];
+  return 2;
+}
+
+void FixHybridMPM::unpack_restart(int nlocal, int nth)
+{
+  double **extra = atom->extra;
+  int m = 0;
+  for (int i = 0; i < nth; i++) m += static_cast<int>(extra[nlocal][m]);
+  weight[nlocal] = extra[nlocal][m + 1];
+}
+
+int FixHybridMPM::size_restart(int /*nlocal*/)
+{
+  return 2;
+}
+
+int FixHybridMPM::maxsize_restart()
+{
+  return 2;
 }
 
 /* ---------------------------------------------------------------------- */

@@ -16,9 +16,17 @@ FixStyle(hybrid/mpm,FixHybridMPM);
 #include "fix.h"
 
 #include <memory>
+#include <string>
+#include <vector>
 
 namespace coupler {
 class Link;
+struct ContinuumSettings;
+struct StepAck;
+struct NodeUpdate;
+struct GrainView;
+template <int D> struct GridGeometry;
+template <int D> struct NodeMomentum;
 }
 
 namespace LAMMPS_NS {
@@ -30,12 +38,25 @@ class FixHybridMPM : public Fix {
   int setmask() override;
   void init() override;
   void setup(int) override;
+  void pre_exchange() override;
   void end_of_step() override;
   void post_run() override;
   double compute_scalar() override;
+  double compute_vector(int) override;
   double memory_usage() override;
   void write_restart(FILE *) override;
   void restart(char *) override;
+
+  // per-atom hybrid weight: exchanged with the atoms and kept in restart files
+  void grow_arrays(int) override;
+  void copy_arrays(int, int, int) override;
+  void set_arrays(int) override;
+  int pack_exchange(int, double *) override;
+  int unpack_exchange(int, double *) override;
+  int pack_restart(int, double *) override;
+  void unpack_restart(int, int) override;
+  int size_restart(int) override;
+  int maxsize_restart() override;
 
   /// Creator for the style maps (lmp_hybrid and the plugin register this).
   static Fix *creator(LAMMPS *lmp, int narg, char **arg);
@@ -46,13 +67,44 @@ class FixHybridMPM : public Fix {
   double idle_timeout;    // s the MPM process waits for the next message from LAMMPS
   int model;              // coupler::ModelId
   int every;              // exchange every this many steps
+  int hybrid_width;       // cells of hybrid zone inside the continuum regions' border
+  double inertia;         // moment of inertia factor of a grain (I = inertia m r^2)
+  std::vector<std::string> region_ids;     // continuum regions
+  std::string output_path;                 // HDF5 file of grains and points ("" = none)
+  std::unique_ptr<coupler::ContinuumSettings> settings;
+  bool diameter_given, density_given;      // mu(I) grain size and density from the fix line
 
   std::unique_ptr<coupler::Link> link;    // connection to the MPM process (all ranks)
   bigint exchanges;                       // completed step exchanges (all runs)
   bigint restart_exchanges;               // exchanges read from a restart file
   bigint last_step;                       // last step seen (for the finish message)
 
+  double *weight;                         // per-atom share of its material a grain carries
+  std::vector<signed char> zones;         // coupler::Zone per grid cell (same on all ranks)
+  bool converted;                         // grains of the continuum regions became points
+  bool convert_pending;                   // conversion at the next pre_exchange
+  std::vector<double> setup_stress;       // per local atom stress*volume at setup (6 each)
+  char *stress_id;                        // compute stress/atom for the Love-Weber stress
+
+  // last exchange, for thermo output
+  std::unique_ptr<coupler::StepAck> last_ack;
+  bigint coupled_grains;
+  bigint vector_step;                     // step of the cached thermo vector
+  double vector_cache[15];
+
   void connect();
+  template <int D> void convert();
+  template <int D> void exchange();
+  template <int D>
+  void apply_updates(const coupler::GridGeometry<D> &grid, const coupler::GrainView &view,
+                     const std::vector<coupler::NodeMomentum<D>> &nodes,
+                     const std::vector<coupler::NodeUpdate> &updates, const std::vector<int> &index);
+  void send_grains(const std::string &what);
+  void check_all(int status, const std::string &what);
+  void compute_zones();
+  int zone_of(const double *x) const;
+  void grain_defaults();
+  void fill_thermo_vector();
   void fail(const char *file, int line, int status, const char *what);
   [[noreturn]] void illegal(const std::string &why);
 };

@@ -72,7 +72,7 @@ def test_lmp_hybrid_handshake_steps_and_clean_finish(tmp_path, hybrid_programs, 
     assert "coupled run finished at LAMMPS step 200 after 20 exchange(s)" in text
     lammps_log = log.read_text()
     assert "fix hybrid/mpm: handshake ok with the MPM process (1 rank(s)): mpm_solver" in lammps_log
-    assert "protocol 1" in lammps_log and "cell 0.01, model drucker_prager" in lammps_log
+    assert "protocol 2" in lammps_log and "cell 0.01, model drucker_prager" in lammps_log
     assert "fix hybrid/mpm: finished the coupled run after 20 exchange(s)" in lammps_log
     # f_couple (thermo column) counts the exchanges
     last = [ln.split() for ln in lammps_log.splitlines() if re.match(r"^\s+200\s+630\s", ln)]
@@ -169,7 +169,7 @@ def test_version_mismatch_is_an_error_on_both_sides_naming_both_versions(tmp_pat
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60, env=env())
     text = output(proc)
     assert proc.returncode != 0, text
-    both = "fix hybrid/mpm is release 0.1.0 (protocol 1), mpm_solver is release 9.9.9 (protocol 1)"
+    both = "fix hybrid/mpm is release 0.1.0 (protocol 2), mpm_solver is release 9.9.9 (protocol 2)"
     assert f"mpm_solver: error: version mismatch: {both}" in text, text
     assert f"ERROR: Fix hybrid/mpm: the MPM process refused the connection: version mismatch: {both}" in text
 
@@ -338,8 +338,9 @@ def test_hung_mpm_process_times_out_in_lammps(job_factory):
     assert rc != 0, job.text
     # stopped while LAMMPS waited for an acknowledgement, or while it sent a step header
     assert re.search(r"ERROR: Fix hybrid/mpm: (no reply from the MPM process within 3 s while waiting for the "
-                     r"acknowledgement of step \d+; it may have crashed or hung - check its output|could not "
-                     r"deliver the step header of step \d+ to the MPM process within 3 s)", job.text), job.text
+                     r"(acknowledgement|node velocities) of step \d+; it may have crashed or hung - check its output|"
+                     r"could not deliver the (step header|grain node sums) of step \d+ to the MPM process within 3 s)",
+                     job.text), job.text
     assert "fix hybrid/mpm: the MPM process does not respond; aborting the MPI job" in job.text
 
 

@@ -13,6 +13,12 @@ documents the layout in full). In short::
                        -trace(stress)/D), plastic_strain (N), material (N, uint16)
     /frames/NNNNNN/grid   mass (dims), velocity (dims x D) (grid output only)
 
+Coupled runs (format_version 2) also write, per frame, the points' ``zone``
+(int8: 0 discrete, 1 hybrid, 2 continuum) and ``weight`` (N), and the DEM side
+in ``/frames/NNNNNN/grains``: id (G, int64), position and velocity (G x 3, also
+in 2D), radius, mass (the mass the grain carries), weight (G), zone (G, int8);
+see :func:`read_grains`.
+
 In 2D, ``velocity3`` and ``stress3`` are zero-padded copies kept for ParaView
 (XDMF); this module does not return them.
 
@@ -38,7 +44,16 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 import h5py
 import numpy as np
 
-__all__ = ["FrameInfo", "Run", "load_run", "final_frame", "surface_profile", "runout"]
+__all__ = [
+    "FrameInfo",
+    "Run",
+    "load_run",
+    "final_frame",
+    "read_grains",
+    "read_grid",
+    "surface_profile",
+    "runout",
+]
 
 POINTS_FILE = "points.h5"
 
@@ -166,6 +181,85 @@ def final_frame(directory: Union[str, os.PathLike], live: bool = False) -> Dict[
     if not run.frames:
         raise ValueError(f"{run.path} holds no frames")
     return run.frame(-1)
+
+
+#: Datasets of a frame's ``grains`` group (coupled runs).
+GRAIN_FIELDS = ("id", "position", "velocity", "radius", "mass", "weight", "zone")
+
+
+def _points_file(path: Union[str, os.PathLike]) -> str:
+    """``path`` itself if it is a file, else ``path/points.h5``."""
+    path = os.fspath(path)
+    return os.path.join(path, POINTS_FILE) if os.path.isdir(path) else path
+
+
+def _frame_group(f: h5py.File, frame: int) -> h5py.Group:
+    """Frame ``frame`` (negative counts from the end) of an open points file."""
+    names = sorted(f["frames"]) if "frames" in f else []
+    if not names:
+        raise ValueError(f"{f.filename} holds no frames")
+    return f["frames"][names[frame]]
+
+
+def read_grains(path: Union[str, os.PathLike], frame: int = -1) -> Dict[str, np.ndarray]:
+    """The grains of one frame of a coupled run.
+
+    Args:
+        path: the run's output directory or its ``points.h5``.
+        frame: frame index (negative counts from the end).
+
+    Returns:
+        a dict with ``id``, ``position`` and ``velocity`` (G x 3, also in
+        2D), ``radius``, ``mass`` (the mass the grain carries, i.e. weight
+        times its full mass), ``weight``, ``zone`` (0 discrete, 1 hybrid,
+        2 continuum), and the frame's ``time`` and ``step``.
+
+    Raises:
+        KeyError: the frame holds no grains (not a coupled run, or a frame
+            written without them).
+    """
+    with h5py.File(_points_file(path), "r") as f:
+        group = _frame_group(f, frame)
+        if "grains" not in group:
+            raise KeyError(f"{f.filename}: frame {group.name} holds no grains")
+        grains = group["grains"]
+        out: Dict[str, np.ndarray] = {name: grains[name][()] for name in GRAIN_FIELDS}
+        out["time"] = np.float64(group.attrs["time"])
+        out["step"] = np.int64(group.attrs["step"])
+    return out
+
+
+def read_grid(path: Union[str, os.PathLike], frame: int = -1) -> Dict[str, np.ndarray]:
+    """The grid fields of one frame, with the grid's geometry.
+
+    The same values as ``Run.frame(i)``'s ``grid_mass`` and ``grid_velocity``
+    together with ``Run.grid``, for when only the grid is wanted.
+
+    Args:
+        path: the run's output directory or its ``points.h5``.
+        frame: frame index (negative counts from the end).
+
+    Returns:
+        a dict with ``mass`` (dims), ``velocity`` (dims x D), indexed
+        ``[i, j(, k)]`` for the node at ``origin + dx * (i, j(, k))``,
+        ``origin`` (D), ``dx``, ``dims`` (D), and the frame's ``time`` and ``step``.
+
+    Raises:
+        KeyError: the run wrote no grid fields.
+    """
+    with h5py.File(_points_file(path), "r") as f:
+        group = _frame_group(f, frame)
+        if "grid" not in group or "grid_dims" not in f.attrs:
+            raise KeyError(f"{f.filename}: frame {group.name} holds no grid fields")
+        return {
+            "mass": group["grid"]["mass"][()],
+            "velocity": group["grid"]["velocity"][()],
+            "origin": np.asarray(f.attrs["grid_origin"], dtype=float),
+            "dx": float(f.attrs["grid_dx"]),
+            "dims": np.asarray(f.attrs["grid_dims"], dtype=np.int64),
+            "time": np.float64(group.attrs["time"]),
+            "step": np.int64(group.attrs["step"]),
+        }
 
 
 def _as_points(positions) -> np.ndarray:

@@ -180,6 +180,11 @@ const char* tag_name(int tag) {
     case kTagIntercomm: return "Intercomm";
     case kTagStep: return "StepHeader";
     case kTagStepAck: return "StepAck";
+    case kTagZones: return "ZoneMap";
+    case kTagCells: return "CellMoments";
+    case kTagNodes: return "NodeRecords";
+    case kTagNodeReply: return "NodeUpdates";
+    case kTagGrains: return "GrainRecords";
     case kTagFinish: return "Finish";
     case kTagAbort: return "AbortNote";
     default: return "an unknown message";
@@ -282,24 +287,24 @@ int recv_bytes(MPI_Comm comm, int source, std::initializer_list<int> tags, void*
 Link::Link(Intercomm comm, bool leader, double reply_timeout, std::string peer_name)
     : comm_(std::move(comm)), leader_(leader), reply_timeout_(reply_timeout), peer_name_(std::move(peer_name)) {}
 
-StepAck Link::step(const StepHeader& h) {
-  StepAck ack;
+void Link::send(int dest, int tag, const void* data, std::size_t bytes, const std::string& what) {
   try {
-    send_msg(comm(), 0, kTagStep, h, reply_timeout_,
-             "the step header of step " + std::to_string(h.step) + " to " + peer_name_);
-    recv_bytes(comm(), 0, {kTagStepAck}, &ack, sizeof ack, reply_timeout_, peer_name_,
-               "the acknowledgement of step " + std::to_string(h.step));
+    send_bytes(comm(), dest, tag, data, static_cast<int>(bytes), reply_timeout_, what + " to " + peer_name_);
   } catch (const PeerError&) {
     state_ = State::kUnresponsive;
     throw;
   }
-  if (ack.step != h.step) {
+}
+
+Message Link::receive(int source, std::initializer_list<int> tags, const std::string& what, double timeout_s,
+                      const std::atomic<bool>* peer_ended) {
+  try {
+    return recv_message(comm(), source, tags, timeout_s < 0 ? reply_timeout_ : timeout_s, peer_name_, what,
+                        peer_ended);
+  } catch (const PeerError&) {
     state_ = State::kUnresponsive;
-    throw PeerError("protocol error: " + peer_name_ + " acknowledged step " + std::to_string(ack.step) +
-                    " instead of step " + std::to_string(h.step));
+    throw;
   }
-  ++exchanges_;
-  return ack;
 }
 
 void Link::finish(std::int64_t step) {

@@ -20,15 +20,28 @@
 //       pressure           N, Pa, p = -trace(stress) / D
 //       plastic_strain     N, accumulated equivalent plastic shear strain
 //       material           N, uint16, index into /materials
+//       zone               coupled runs only: N, int8, zone of the point's cell
+//                          (0 discrete, 1 hybrid, 2 continuum)
+//       weight             coupled runs only: N, share of its cell's material the point carries
 //       velocity3          2D only: N x 3, velocity padded with a zero z component (for XDMF)
 //       stress3            2D only: N x 3 x 3, stress padded with zeros (for XDMF)
 //       grid/              only with grid fields
 //           mass           dims (row-major, last axis fastest, as mpm::Grid stores it), kg
 //           velocity       dims x D, node velocity after the grid update, m/s
 //           velocity3      2D only: dims x 3, zero-padded (for XDMF)
+//       grains/            coupled runs only, frames with grains (the DEM side); G grains
+//           id             G, int64, LAMMPS atom id
+//           position       G x 3, m (also in 2D, z = 0)
+//           velocity       G x 3, m/s
+//           radius         G, m
+//           mass           G, the mass the grain carries (weight * its full mass), kg
+//           weight         G, share of its cell's material the grain carries
+//           zone           G, int8, zone of the grain's cell
 //
 // XDMF sidecars (rewritten after every frame through a temporary file and a rename):
 //   points.xdmf  a temporal collection of Polyvertex grids, one per frame
+//   grains.xdmf  once a frame had grains: a temporal collection of Polyvertex grids, one
+//                per frame with grains; shares /xdmf/vertex_ids_N with points.xdmf
 //   grid.xdmf    with grid fields only: a temporal collection of 2DSMesh/3DSMesh grids.
 //                The grid is described by explicit node coordinates (/grid_coordinates)
 //                rather than as a CoRectMesh because XDMF's CoRectMesh expects the first
@@ -66,7 +79,9 @@ namespace fs = std::filesystem;
 /// Values (doubles) per block in which derived datasets are assembled and
 /// written, so that a derived dataset never needs a temporary of its full size.
 constexpr std::size_t kBlockValues = std::size_t{1} << 18;
-constexpr int kFormatVersion = 1;
+// 1: points and grid fields. 2: adds the coupled runs' optional frame group `grains` and
+// point datasets `zone` and `weight`; files without them read as version 1 did.
+constexpr int kFormatVersion = 2;
 
 std::string frame_name(int index) {
   char buf[32];
@@ -278,6 +293,7 @@ struct SnapshotWriter<D>::Impl {
   std::vector<hsize_t> vertex_id_sizes;  ///< point counts N with a /xdmf/vertex_ids_N dataset
   std::vector<std::string> point_frames_xml;  ///< one <Grid> per frame, cached
   std::vector<std::string> grid_frames_xml;
+  std::vector<std::string> grain_frames_xml;  ///< frames with grains only
   bool grid_geometry_written = false;
   IVec<D> grid_dims = IVec<D>::Zero();
   Vec<D> grid_origin = Vec<D>::Zero();
@@ -318,17 +334,43 @@ struct SnapshotWriter<D>::Impl {
     write_file_atomically(directory / "points.xdmf", xdmf_document("points", point_frames_xml));
   }
 
-  void write(const Particles<D>& pts, const Grid<D>& grid, double time, long step) {
+  /// Throws std::invalid_argument unless `size` is `expected`.
+  void check_length(const char* what, std::size_t size, std::size_t expected) const {
+    if (size != expected)
+      throw std::invalid_argument("SnapshotWriter: " + std::string(what) + " has " + std::to_string(size) +
+                                  " values, expected " + std::to_string(expected) + " (writing '" + h5.path() + "')");
+  }
+
+  void write(const Particles<D>& pts, const Grid<D>& grid, double time, long step, const GrainFrame* grains,
+             const PointCoupling* coupling) {
     const std::size_t n = pts.size();
     if (pts.v.size() != n || pts.stress.size() != n || pts.mass.size() != n || pts.volume0.size() != n ||
         pts.J.size() != n || pts.plastic_strain.size() != n || pts.material.size() != n)
       throw std::invalid_argument("SnapshotWriter: the point arrays differ in length (writing '" + h5.path() + "')");
+    // All checks before the first write, so that a refused frame leaves the file untouched.
+    if (coupling) {
+      check_length("the points' zone", coupling->zone.size(), n);
+      check_length("the points' weight", coupling->weight.size(), n);
+    }
+    if (grains) {
+      const std::size_t g = grains->size();
+      check_length("the grains' x", grains->x.size(), 3 * g);
+      check_length("the grains' v", grains->v.size(), 3 * g);
+      check_length("the grains' radius", grains->radius.size(), g);
+      check_length("the grains' mass", grains->mass.size(), g);
+      check_length("the grains' weight", grains->weight.size(), g);
+      check_length("the grains' zone", grains->zone.size(), g);
+    }
     const std::string name = frame_name(frames_written);
     const Loc frames_loc{frames.get(), "/frames"};
     try {
       ensure_vertex_ids(pts.size());
+      if (grains) ensure_vertex_ids(grains->size());
       h5::Group group = create_group(h5, frames_loc, name.c_str());
-      write_frame(Loc{group.get(), frames_loc.child(name.c_str())}, pts, grid, time, step);
+      const Loc frame{group.get(), frames_loc.child(name.c_str())};
+      write_frame(frame, pts, grid, time, step);
+      if (coupling) write_coupling(frame, *coupling);
+      if (grains) write_grains(frame, *grains);
       h5.ok(H5Fflush(file.get(), H5F_SCOPE_GLOBAL), "flush", "");
     } catch (...) {
       // Leave no half-written frame behind: a retry or the next frame reuses the name.
@@ -340,11 +382,34 @@ struct SnapshotWriter<D>::Impl {
       H5Eclear2(H5E_DEFAULT);
       throw;
     }
-    point_frames_xml.push_back(points_xml(name, pts.size(), time));
+    point_frames_xml.push_back(points_xml(name, pts.size(), time, coupling != nullptr));
     if (grid_fields) grid_frames_xml.push_back(grid_xml(name, time));
+    if (grains) grain_frames_xml.push_back(grains_xml(name, grains->size(), time));
     ++frames_written;
     write_file_atomically(directory / "points.xdmf", xdmf_document("points", point_frames_xml));
     if (grid_fields) write_file_atomically(directory / "grid.xdmf", xdmf_document("grid", grid_frames_xml));
+    if (!grain_frames_xml.empty())
+      write_file_atomically(directory / "grains.xdmf", xdmf_document("grains", grain_frames_xml));
+  }
+
+  void write_coupling(const Loc& g, const PointCoupling& c) {
+    const std::vector<hsize_t> scalar{c.zone.size()};
+    write_direct(h5, g, "zone", H5T_STD_I8LE, H5T_NATIVE_INT8, scalar, c.zone.data());
+    write_direct(h5, g, "weight", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, scalar, c.weight.data());
+  }
+
+  void write_grains(const Loc& frame, const GrainFrame& grains) {
+    h5::Group group = create_group(h5, frame, "grains");
+    const Loc g{group.get(), frame.child("grains")};
+    const hsize_t n = grains.size();
+    const std::vector<hsize_t> scalar{n}, vector{n, 3};
+    write_direct(h5, g, "id", H5T_STD_I64LE, H5T_NATIVE_INT64, scalar, grains.id.data());
+    write_direct(h5, g, "position", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, vector, grains.x.data());
+    write_direct(h5, g, "velocity", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, vector, grains.v.data());
+    write_direct(h5, g, "radius", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, scalar, grains.radius.data());
+    write_direct(h5, g, "mass", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, scalar, grains.mass.data());
+    write_direct(h5, g, "weight", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, scalar, grains.weight.data());
+    write_direct(h5, g, "zone", H5T_STD_I8LE, H5T_NATIVE_INT8, scalar, grains.zone.data());
   }
 
   void write_frame(const Loc& g, const Particles<D>& pts, const Grid<D>& grid, double time, long step) {
@@ -462,7 +527,13 @@ struct SnapshotWriter<D>::Impl {
     const hsize_t n = n_points;
     if (n == 0 || std::find(vertex_id_sizes.begin(), vertex_id_sizes.end(), n) != vertex_id_sizes.end()) return;
     const std::string name = vertex_ids_name(n);
-    write_derived_int64(Loc{xdmf_group.get(), "/xdmf"}, name.c_str(), n);
+    try {
+      write_derived_int64(Loc{xdmf_group.get(), "/xdmf"}, name.c_str(), n);
+    } catch (...) {
+      // Not recorded in vertex_id_sizes, so a later frame writes it again: remove the remains.
+      H5Ldelete(xdmf_group.get(), name.c_str(), H5P_DEFAULT);
+      throw;
+    }
     vertex_id_sizes.push_back(n);
   }
 
@@ -482,16 +553,22 @@ struct SnapshotWriter<D>::Impl {
     }
   }
 
-  std::string points_xml(const std::string& name, std::size_t n_points, double time) const {
-    const hsize_t n = n_points;
-    const std::string base = "/frames/" + name + "/";
+  /// Opening <Grid>, time and Polyvertex topology of a point set of n vertices.
+  std::string polyvertex_xml(const std::string& grid_name, hsize_t n, double time) const {
     std::string s;
-    s += "      <Grid Name=\"points_" + name + "\" GridType=\"Uniform\">\n";
+    s += "      <Grid Name=\"" + grid_name + "\" GridType=\"Uniform\">\n";
     s += "        <Time Value=\"" + format_double(time) + "\"/>\n";
     s += "        <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" + std::to_string(n) +
          "\" NodesPerElement=\"1\">\n";
     if (n > 0) s += "          " + data_item({n}, "Int", 8, h5_name, "/xdmf/" + vertex_ids_name(n)) + "\n";
     s += "        </Topology>\n";
+    return s;
+  }
+
+  std::string points_xml(const std::string& name, std::size_t n_points, double time, bool coupling) const {
+    const hsize_t n = n_points;
+    const std::string base = "/frames/" + name + "/";
+    std::string s = polyvertex_xml("points_" + name, n, time);
     s += std::string("        <Geometry GeometryType=\"") + (D == 2 ? "XY" : "XYZ") + "\">\n";
     s += "          " + data_item({n, D}, "Float", 8, h5_name, base + "position") + "\n";
     s += "        </Geometry>\n";
@@ -505,6 +582,25 @@ struct SnapshotWriter<D>::Impl {
     for (const char* scalar : {"pressure", "mass", "volume", "plastic_strain"})
       s += attribute_xml(scalar, "Scalar", data_item({n}, "Float", 8, h5_name, base + scalar));
     s += attribute_xml("material", "Scalar", data_item({n}, "UInt", 2, h5_name, base + "material"));
+    if (coupling) {
+      s += attribute_xml("zone", "Scalar", data_item({n}, "Char", 1, h5_name, base + "zone"));
+      s += attribute_xml("weight", "Scalar", data_item({n}, "Float", 8, h5_name, base + "weight"));
+    }
+    s += "      </Grid>\n";
+    return s;
+  }
+
+  std::string grains_xml(const std::string& name, std::size_t n_grains, double time) const {
+    const hsize_t n = n_grains;
+    const std::string base = "/frames/" + name + "/grains/";
+    std::string s = polyvertex_xml("grains_" + name, n, time);
+    s += "        <Geometry GeometryType=\"XYZ\">\n";
+    s += "          " + data_item({n, 3}, "Float", 8, h5_name, base + "position") + "\n";
+    s += "        </Geometry>\n";
+    s += attribute_xml("velocity", "Vector", data_item({n, 3}, "Float", 8, h5_name, base + "velocity"));
+    for (const char* scalar : {"radius", "mass", "weight"})
+      s += attribute_xml(scalar, "Scalar", data_item({n}, "Float", 8, h5_name, base + scalar));
+    s += attribute_xml("zone", "Scalar", data_item({n}, "Char", 1, h5_name, base + "zone"));
     s += "      </Grid>\n";
     return s;
   }
@@ -545,9 +641,10 @@ SnapshotWriter<D>::~SnapshotWriter() {
 }
 
 template <int D>
-void SnapshotWriter<D>::write(const Particles<D>& points, const Grid<D>& grid, double time, long step) {
+void SnapshotWriter<D>::write(const Particles<D>& points, const Grid<D>& grid, double time, long step,
+                              const GrainFrame* grains, const PointCoupling* coupling) {
   h5::ErrorSilencer quiet;
-  impl_->write(points, grid, time, step);
+  impl_->write(points, grid, time, step, grains, coupling);
 }
 
 template <int D>

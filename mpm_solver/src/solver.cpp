@@ -47,7 +47,7 @@ Solver<D>::Solver(const Scene& scene) : scene_(scene) {
                     std::to_string(D) + "D solver");
   if (!(scene.grid.cell_size > 0)) throw UserError("[grid] cell_size must be > 0");
   if (scene.materials.empty()) throw UserError("the scene defines no [[material]]");
-  if (scene.blocks.empty()) throw UserError("the scene defines no [[block]] of material");
+  if (scene.blocks.empty() && !scene.coupled) throw UserError("the scene defines no [[block]] of material");
   const Vec<D> lower = take<D>(scene.grid.lower), upper = take<D>(scene.grid.upper);
   if (!((upper - lower).array() > scene.grid.cell_size).all())
     throw UserError("[grid] upper must exceed lower by at least one cell_size on every axis");
@@ -58,7 +58,8 @@ Solver<D>::Solver(const Scene& scene) : scene_(scene) {
 
   for (const auto& m : scene.materials) materials_.emplace_back(m);
   for (const auto& b : scene.blocks) seed_block(b);
-  if (points_.size() == 0) throw UserError("the material blocks contain no points; check their sizes against cell_size");
+  if (points_.size() == 0 && !scene.coupled)
+    throw UserError("the material blocks contain no points; check their sizes against cell_size");
 
   // Domain faces act as walls of the chosen kind.
   for (int a = 0; a < D; ++a)
@@ -207,9 +208,28 @@ void Solver<D>::step(double dt) {
   p2g(dt);
   grid_update(dt);
   g2p(dt);
+  advance_clock(dt);
+}
+
+template <int D>
+void Solver<D>::advance_clock(double dt) {
   time_ += dt;
   ++steps_;
   update_rigid_boundaries();
+}
+
+template <int D>
+void Solver<D>::add_point(const Vec<D>& x, const Vec<D>& v, const Mat<D>& C, double mass, double volume,
+                          const Mat<D>& stress, std::uint16_t material) {
+  const MaterialModel& model = materials_.at(material);
+  points_.add(x, v, mass, volume, material);
+  const std::size_t p = points_.size() - 1;
+  points_.C[p] = C;
+  points_.stress[p] = stress;
+  if (model.kind == ModelKind::DruckerPrager) points_.be[p] = elastic_state_for_stress<D>(model, stress);
+  const double c = std::sqrt((model.lame_lambda + 2.0 * model.shear_modulus) / (mass / volume));
+  max_wave_speed_ = std::max(max_wave_speed_, c);
+  max_speed_ = std::max(max_speed_, v.norm());
 }
 
 template <int D>
@@ -417,6 +437,7 @@ void Solver<D>::sort_points_by_cell() {
   permute(points_.J);
   permute(points_.plastic_strain);
   permute(points_.material);
+  permute(points_.weight);
 }
 
 template <int D>

@@ -10,6 +10,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "coupler/version.hpp"
@@ -471,6 +472,195 @@ TEST(SnapshotWriter, GridThatChangesBetweenFramesIsRefusedAndLeavesNoPartialFram
   Reader r(tmp.path() / "points.h5");
   EXPECT_EQ(r.frame_count(), 2u);
   EXPECT_EQ(r.attribute<double>("/frames/000001", "time", H5T_NATIVE_DOUBLE).at(0), 0.2);
+}
+
+// --- coupled runs: grains and the points' zone and weight ------------------
+
+GrainFrame make_grains(int n, double shift) {
+  GrainFrame g;
+  for (int i = 0; i < n; ++i) {
+    g.id.push_back(1000000000000LL + 7 * i);  // beyond 32 bits
+    for (int a = 0; a < 3; ++a) {
+      g.x.push_back(0.01 * i + 0.1 * a + shift + 1.0 / 7.0);
+      g.v.push_back(-0.03 * i + a - shift);
+    }
+    g.radius.push_back(0.001 + 1e-5 * i);
+    g.weight.push_back(i % 3 == 1 ? 0.25 + 0.1 * shift : 1.0);
+    g.mass.push_back(g.weight.back() * (2e-3 + 1e-4 * i));
+    g.zone.push_back(static_cast<std::int8_t>(i % 3));
+  }
+  return g;
+}
+
+PointCoupling make_coupling(std::size_t n) {
+  PointCoupling c;
+  for (std::size_t p = 0; p < n; ++p) {
+    c.zone.push_back(static_cast<std::int8_t>(p % 2 + 1));  // points live in hybrid and continuum cells
+    c.weight.push_back(p % 2 ? 1.0 : 0.75 - 0.01 * static_cast<double>(p));
+  }
+  return c;
+}
+
+void expect_grains(const Reader& r, const std::string& frame, const GrainFrame& g) {
+  SCOPED_TRACE(frame + "/grains");
+  const std::string base = frame + "/grains/";
+  const hsize_t n = g.size();
+  EXPECT_EQ(r.dims(base + "id"), (std::vector<hsize_t>{n}));
+  EXPECT_EQ(r.dims(base + "position"), (std::vector<hsize_t>{n, 3}));
+  EXPECT_EQ(r.dims(base + "velocity"), (std::vector<hsize_t>{n, 3}));
+  EXPECT_EQ(r.read<std::int64_t>(base + "id", H5T_NATIVE_INT64), g.id);
+  EXPECT_EQ(r.doubles(base + "position"), g.x);
+  EXPECT_EQ(r.doubles(base + "velocity"), g.v);
+  EXPECT_EQ(r.doubles(base + "radius"), g.radius);
+  EXPECT_EQ(r.doubles(base + "mass"), g.mass);
+  EXPECT_EQ(r.doubles(base + "weight"), g.weight);
+  EXPECT_EQ(r.read<std::int8_t>(base + "zone", H5T_NATIVE_INT8), g.zone);
+  // Stored as the types the layout documents, not just readable as them.
+  h5::Dataset zone(H5Dopen2(r.file.get(), (base + "zone").c_str(), H5P_DEFAULT));
+  h5::Datatype zone_type(H5Dget_type(zone.get()));
+  EXPECT_GT(H5Tequal(zone_type.get(), H5T_STD_I8LE), 0);
+  h5::Dataset id(H5Dopen2(r.file.get(), (base + "id").c_str(), H5P_DEFAULT));
+  h5::Datatype id_type(H5Dget_type(id.get()));
+  EXPECT_GT(H5Tequal(id_type.get(), H5T_STD_I64LE), 0);
+}
+
+/// Frame 0 without grains or coupling, frames 1 and 2 with both (different grain counts).
+template <int D>
+void coupled_round_trip(const std::string& tag) {
+  TempDir tmp(tag);
+  const Scene scene = make_scene(D, tmp.path(), /*grid_fields=*/true);
+  const auto pts = make_points<D>(6, 0.0);
+  const Grid<D> grid = make_grid<D>(0.0);
+  const GrainFrame grains1 = make_grains(5, 0.0), grains2 = make_grains(8, 0.5);
+  const PointCoupling coupling = make_coupling(pts.size());
+  {
+    SnapshotWriter<D> writer(tmp.path().string(), scene);
+    writer.write(pts, grid, 0.0, 0);
+    EXPECT_FALSE(fs::exists(tmp.path() / "grains.xdmf"));  // no frame with grains yet
+    writer.write(pts, grid, 0.25, 10, &grains1, &coupling);
+    writer.write(pts, grid, 0.5, 20, &grains2, &coupling);
+    EXPECT_EQ(writer.frames_written(), 3);
+  }
+  Reader r(tmp.path() / "points.h5");
+  ASSERT_TRUE(r.file.valid());
+  EXPECT_EQ(r.string_attribute("/", "format"), "mpm-points");
+  EXPECT_EQ(r.attribute<int>("/", "format_version", H5T_NATIVE_INT).at(0), 2);
+  EXPECT_EQ(r.frame_count(), 3u);
+  expect_frame(r, "/frames/000001", pts, 0.25, 10);  // the point datasets are unchanged
+  expect_grid(r, "/frames/000001", grid);
+
+  EXPECT_FALSE(r.exists("/frames/000000/grains"));
+  EXPECT_FALSE(r.exists("/frames/000000/zone"));
+  EXPECT_FALSE(r.exists("/frames/000000/weight"));
+  expect_grains(r, "/frames/000001", grains1);
+  expect_grains(r, "/frames/000002", grains2);
+  for (const std::string frame : {"/frames/000001", "/frames/000002"}) {
+    SCOPED_TRACE(frame);
+    EXPECT_EQ(r.read<std::int8_t>(frame + "/zone", H5T_NATIVE_INT8), coupling.zone);
+    EXPECT_EQ(r.doubles(frame + "/weight"), coupling.weight);
+  }
+  // Polyvertex connectivity shared with the points: one dataset per distinct count.
+  EXPECT_EQ(r.read<std::int64_t>("/xdmf/vertex_ids_5", H5T_NATIVE_INT64), (std::vector<std::int64_t>{0, 1, 2, 3, 4}));
+  EXPECT_EQ(r.dims("/xdmf/vertex_ids_8"), (std::vector<hsize_t>{8}));
+  EXPECT_TRUE(r.exists("/xdmf/vertex_ids_6"));
+
+  const std::string grains_xdmf = read_text(tmp.path() / "grains.xdmf");
+  EXPECT_EQ(count_occurrences(grains_xdmf, "<Grid "), 3);  // collection + the 2 frames with grains
+  EXPECT_EQ(grains_xdmf.find("/frames/000000/"), std::string::npos);
+  EXPECT_NE(grains_xdmf.find("GeometryType=\"XYZ\""), std::string::npos);
+  EXPECT_NE(grains_xdmf.find("<Time Value=\"0.25\"/>"), std::string::npos);
+  for (const char* ds : {"position", "velocity", "radius", "mass", "weight", "zone"})
+    EXPECT_NE(grains_xdmf.find(std::string("points.h5:/frames/000002/grains/") + ds + "<"), std::string::npos) << ds;
+  EXPECT_EQ(count_occurrences(grains_xdmf, "points.h5:/xdmf/vertex_ids_5<"), 1);
+  EXPECT_EQ(count_occurrences(grains_xdmf, "points.h5:/xdmf/vertex_ids_8<"), 1);
+  EXPECT_EQ(check_xdmf_references(grains_xdmf, r), 2 * 7);  // topology + geometry + 5 attributes per frame
+  EXPECT_FALSE(fs::exists(tmp.path() / "grains.xdmf.tmp"));
+
+  const std::string points_xdmf = read_text(tmp.path() / "points.xdmf");
+  EXPECT_EQ(count_occurrences(points_xdmf, "<Attribute Name=\"zone\""), 2);
+  EXPECT_EQ(count_occurrences(points_xdmf, "<Attribute Name=\"weight\""), 2);
+  EXPECT_NE(points_xdmf.find("points.h5:/frames/000001/zone<"), std::string::npos);
+  EXPECT_EQ(check_xdmf_references(points_xdmf, r), 9 + 2 * 11);
+}
+
+TEST(SnapshotWriter, CoupledFramesWithGrains2D) { coupled_round_trip<2>("coupled2d"); }
+TEST(SnapshotWriter, CoupledFramesWithGrains3D) { coupled_round_trip<3>("coupled3d"); }
+
+template <int D>
+void mismatched_lengths(const std::string& tag) {
+  TempDir tmp(tag);
+  const Scene scene = make_scene(D, tmp.path(), /*grid_fields=*/true);
+  const auto pts = make_points<D>(4, 0.0);
+  const Grid<D> grid = make_grid<D>(0.0);
+  const GrainFrame good = make_grains(3, 0.0);
+  const PointCoupling coupling = make_coupling(pts.size());
+  std::vector<std::pair<std::string, GrainFrame>> bad_grains;
+  auto broken = [&](const char* what, auto edit) {
+    GrainFrame g = good;
+    edit(g);
+    bad_grains.emplace_back(what, g);
+  };
+  broken("x", [](GrainFrame& g) { g.x.pop_back(); });
+  broken("v", [](GrainFrame& g) { g.v.push_back(0.0); });
+  broken("radius", [](GrainFrame& g) { g.radius.pop_back(); });
+  broken("mass", [](GrainFrame& g) { g.mass.clear(); });
+  broken("weight", [](GrainFrame& g) { g.weight.push_back(1.0); });
+  broken("zone", [](GrainFrame& g) { g.zone.pop_back(); });
+  broken("id", [](GrainFrame& g) { g.id.push_back(99); });
+  PointCoupling short_zone = coupling, long_weight = coupling;
+  short_zone.zone.pop_back();
+  long_weight.weight.push_back(1.0);
+  const std::string path = (tmp.path() / "points.h5").string();
+  {
+    SnapshotWriter<D> writer(tmp.path().string(), scene);
+    writer.write(pts, grid, 0.0, 0, &good, &coupling);
+    for (const auto& [what, g] : bad_grains) {
+      SCOPED_TRACE(what);
+      try {
+        writer.write(pts, grid, 0.1, 1, &g, &coupling);
+        ADD_FAILURE() << "expected std::invalid_argument";
+      } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+      }
+    }
+    EXPECT_THROW(writer.write(pts, grid, 0.1, 1, &good, &short_zone), std::invalid_argument);
+    EXPECT_THROW(writer.write(pts, grid, 0.1, 1, nullptr, &long_weight), std::invalid_argument);
+    // A frame refused later (in the grid output), after its grains' connectivity was written.
+    Grid<D> other(Vec<D>::Zero(), Vec<D>::Constant(2.0), 0.25);
+    const GrainFrame seven = make_grains(7, 0.0);
+    EXPECT_THROW(writer.write(pts, other, 0.1, 1, &seven, &coupling), std::invalid_argument);
+    EXPECT_EQ(writer.frames_written(), 1);
+    EXPECT_EQ(count_occurrences(read_text(tmp.path() / "grains.xdmf"), "<Grid "), 2);
+    writer.write(pts, grid, 0.2, 2, &seven, &coupling);  // reuses the refused frames' name
+    EXPECT_EQ(writer.frames_written(), 2);
+  }
+  Reader r(path);
+  EXPECT_EQ(r.frame_count(), 2u);
+  EXPECT_EQ(r.attribute<double>("/frames/000001", "time", H5T_NATIVE_DOUBLE).at(0), 0.2);
+  expect_grains(r, "/frames/000000", good);
+  expect_grains(r, "/frames/000001", make_grains(7, 0.0));
+  const std::string grains_xdmf = read_text(tmp.path() / "grains.xdmf");
+  EXPECT_EQ(count_occurrences(grains_xdmf, "<Grid "), 3);
+  EXPECT_EQ(check_xdmf_references(grains_xdmf, r), 2 * 7);
+}
+
+TEST(SnapshotWriter, MismatchedGrainOrCouplingLengthsThrowAndLeaveNoFrame2D) { mismatched_lengths<2>("mismatch2d"); }
+TEST(SnapshotWriter, MismatchedGrainOrCouplingLengthsThrowAndLeaveNoFrame3D) { mismatched_lengths<3>("mismatch3d"); }
+
+TEST(SnapshotWriter, EmptyGrainFrame) {
+  TempDir tmp("nograins");
+  const Scene scene = make_scene(2, tmp.path(), false);
+  const GrainFrame none;
+  {
+    SnapshotWriter<2> writer(tmp.path().string(), scene);
+    writer.write(make_points<2>(2, 0.0), Grid<2>{}, 0.0, 0, &none);
+  }
+  Reader r(tmp.path() / "points.h5");
+  EXPECT_EQ(r.dims("/frames/000000/grains/position"), (std::vector<hsize_t>{0, 3}));
+  EXPECT_EQ(r.dims("/frames/000000/grains/zone"), (std::vector<hsize_t>{0}));
+  const std::string grains_xdmf = read_text(tmp.path() / "grains.xdmf");
+  EXPECT_NE(grains_xdmf.find("NumberOfElements=\"0\""), std::string::npos);
+  EXPECT_EQ(check_xdmf_references(grains_xdmf, r), 6);  // geometry + 5 attributes, no connectivity
 }
 
 }  // namespace

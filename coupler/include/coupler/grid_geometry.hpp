@@ -3,6 +3,7 @@
 // where node i sits and how nodes are numbered. The MPM grid stores fields on
 // it; the DEM side uses it to transfer grains to the same nodes.
 #include <Eigen/Core>
+#include <cmath>
 #include <cstddef>
 
 namespace coupler {
@@ -50,5 +51,23 @@ struct GridGeometry {
     return (xi.array() >= 0.5).all() && (xi.array() < dims.template cast<double>().array() - 1.5).all();
   }
 };
+
+/// Cells of padding past the domain on every side: the quadratic stencil of any point
+/// within 1.5 cells outside the domain stays on the grid.
+inline constexpr int kGridPad = 3;
+
+/// The grid over the box [lower, upper] with cell size `cell`: node 0 sits kGridPad cells
+/// below `lower`. Both sides of a coupled run build it from the DEM box, so their node
+/// numbers agree.
+template <int D>
+GridGeometry<D> padded_grid(const Eigen::Matrix<double, D, 1>& lower, const Eigen::Matrix<double, D, 1>& upper,
+                            double cell) {
+  GridGeometry<D> g;
+  g.dx = cell;
+  g.origin = lower.array() - kGridPad * cell;
+  for (int a = 0; a < D; ++a)
+    g.dims[a] = static_cast<int>(std::ceil((upper[a] - lower[a]) / cell)) + 2 * kGridPad + 1;
+  return g;
+}
 
 }  // namespace coupler

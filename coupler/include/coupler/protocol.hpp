@@ -52,8 +52,13 @@ enum Tag : int {
   kTagHello = 7301,       ///< DEM -> MPM, Hello (MPI_COMM_WORLD)
   kTagHelloReply = 7302,  ///< MPM -> DEM, HelloReply (MPI_COMM_WORLD)
   kTagIntercomm = 7303,   ///< tag of MPI_Intercomm_create
-  kTagStep = 7310,        ///< DEM -> MPM, StepHeader (+ grain data in later protocol versions)
-  kTagStepAck = 7311,     ///< MPM -> DEM, StepAck
+  kTagStep = 7310,        ///< DEM leader -> MPM, StepHeader
+  kTagStepAck = 7311,     ///< MPM -> every DEM rank, StepAck (last message of an exchange)
+  kTagZones = 7312,       ///< DEM leader -> MPM, the zone map (one Zone byte per grid cell)
+  kTagCells = 7313,       ///< every DEM rank -> MPM, CellMoments<D>[] of the grains it converts
+  kTagNodes = 7314,       ///< every DEM rank -> MPM, NodeRecord[] of its coupled grains
+  kTagNodeReply = 7315,   ///< MPM -> every DEM rank, NodeUpdate[] in the order of its NodeRecords
+  kTagGrains = 7316,      ///< every DEM rank -> MPM at output frames, GrainRecord[]
   kTagFinish = 7320,      ///< DEM -> MPM, Finish: the coupled run is over, MPM exits 0
   kTagAbort = 7330,       ///< DEM -> MPM, AbortNote: DEM stopped on an error, MPM exits 1
 };
@@ -63,6 +68,29 @@ const char* tag_name(int tag);
 
 inline constexpr int kTextSize = 256;
 inline constexpr int kVersionSize = 32;
+
+/// Wall condition of the continuum at the faces of the DEM box.
+enum WallContact : std::int32_t { kWallSticky = 0, kWallSlip = 1, kWallFriction = 2 };
+
+/// The continuum the MPM process builds, from the fix line (part of Hello).
+struct ContinuumSettings {
+  double youngs_modulus = 1.0e7;      ///< Pa
+  double poisson_ratio = 0.3;
+  double friction_angle_deg = 30.0;   ///< Drucker-Prager
+  double mu_s = 0.382, mu_2 = 0.644, I0 = 0.279;  ///< mu(I)
+  double grain_diameter = 1e-3;       ///< m, mu(I)
+  double grain_density = 2500.0;      ///< kg/m^3 (kg/m^2 in 2D), mu(I)
+  double critical_packing = 0.6;      ///< mu(I): stress-free below this packing fraction
+  double gravity[3] = {0, 0, 0};      ///< m/s^2 (from LAMMPS fix gravity)
+  std::int32_t wall_contact = kWallSlip;
+  double wall_friction = 0.0;
+  double cfl = 0.5;                   ///< MPM substep = cfl * dx / (c + |v|max)
+  double grain_weight = 0.5;          ///< share of a hybrid cell's mass its grains keep
+  double pic = 1.0;                   ///< grain update: 1 = take the agreed field, 0 = impulse only
+  std::int32_t points_per_axis = 2;   ///< material points per cell and axis
+  std::int32_t output_every = 0;      ///< exchanges between output frames, 0 = none
+  char output_path[kTextSize] = {};   ///< HDF5 file the MPM process writes frames to
+};
 
 /// DEM -> MPM: the first message. Units are SI ("si" in LAMMPS).
 struct Hello {
@@ -81,6 +109,8 @@ struct Hello {
   double box_lo[3] = {0, 0, 0};      ///< DEM simulation box, m
   double box_hi[3] = {0, 0, 0};
   std::int64_t step = 0;             ///< DEM step at connection
+  double time = 0;                   ///< DEM time at connection, s
+  ContinuumSettings continuum;
 };
 
 /// MPM -> DEM: answer to Hello.
@@ -92,19 +122,61 @@ struct HelloReply {
   char message[kTextSize] = {};      ///< error text when !ok, a greeting when ok
 };
 
-/// DEM -> MPM, every mpm_every steps. Grain data (n_grains records) follow in later versions.
-struct StepHeader {
-  std::int64_t step = 0;
-  double time = 0;
-  double dt = 0;
-  std::int64_t n_grains = 0;
+/// What a StepHeader announces.
+enum StepKind : std::int32_t {
+  kStepCouple = 0,   ///< NodeRecords follow from every DEM rank; NodeUpdates go back
+  kStepConvert = 1,  ///< the zone map and CellMoments follow (grains become material points)
 };
 
-/// MPM -> DEM, answer to StepHeader.
+/// DEM leader -> MPM, at every exchange (every mpm_every steps) and at the conversion.
+struct StepHeader {
+  std::int64_t step = 0;
+  double time = 0;                   ///< DEM time of this exchange, s
+  double dt = 0;                     ///< DEM time step, s
+  std::int32_t kind = kStepCouple;
+  std::int32_t output = 0;           ///< 1: GrainRecords follow from every DEM rank (an output frame)
+  std::int64_t n_grains = 0;         ///< coupled grains over all DEM ranks (for the log)
+};
+
+/// MPM -> every DEM rank: the end of an exchange, with the continuum's totals.
 struct StepAck {
   std::int64_t step = 0;
   std::int32_t status = 0;           ///< 0 = ok; otherwise message holds the error
+  std::int32_t substeps = 0;         ///< MPM steps taken since the last exchange
   char message[kTextSize] = {};
+  std::int64_t points = 0;           ///< material points
+  std::int64_t shared_nodes = 0;     ///< nodes holding mass of both sides
+  double mass = 0;                   ///< continuum mass, kg
+  double momentum[3] = {0, 0, 0};    ///< continuum linear momentum after the exchange
+  double angular[3] = {0, 0, 0};     ///< continuum (APIC) angular momentum about the origin
+  double kinetic_energy = 0;         ///< J
+  double mismatch = 0;               ///< largest |v_dem - v_mpm| at shared nodes before the agreement, m/s
+  double mpm_dt = 0;                 ///< last MPM substep, s
+};
+
+/// DEM rank -> MPM: a coupled grain's weighted mass and momentum on one node.
+struct NodeRecord {
+  std::uint64_t node = 0;
+  double mass = 0;
+  double momentum[3] = {0, 0, 0};
+};
+
+/// MPM -> DEM rank, one per NodeRecord: the agreed node velocity and lambda_i / m_dem_i.
+struct NodeUpdate {
+  double velocity[3] = {0, 0, 0};
+  double impulse_per_mass[3] = {0, 0, 0};
+};
+
+/// DEM rank -> MPM at output frames: one grain.
+struct GrainRecord {
+  std::int64_t id = 0;
+  double x[3] = {0, 0, 0};
+  double v[3] = {0, 0, 0};
+  double radius = 0;
+  double mass = 0;                   ///< the mass the grain carries (its weight times its full mass)
+  double weight = 1;                 ///< share of its material the grain carries
+  std::int32_t zone = 0;             ///< Zone of its cell
+  std::int32_t pad = 0;
 };
 
 /// DEM -> MPM: normal end of the coupled run.
@@ -199,6 +271,18 @@ struct Message {
     std::memcpy(static_cast<void*>(&t), data.data(), sizeof(T));
     return t;
   }
+  /// The payload as an array of T; throws PeerError if the size is not a multiple of sizeof(T).
+  template <class T>
+  std::vector<T> as_array() const {
+    static_assert(std::is_trivially_copyable_v<T>);
+    if (data.size() % sizeof(T) != 0)
+      throw PeerError("protocol error: a message (tag " + std::to_string(tag) + ") has " +
+                      std::to_string(data.size()) + " bytes, not a multiple of " + std::to_string(sizeof(T)) +
+                      " (are both programs from the same release?)");
+    std::vector<T> items(data.size() / sizeof(T));
+    if (!items.empty()) std::memcpy(static_cast<void*>(items.data()), data.data(), data.size());
+    return items;
+  }
   /// The leading 32-bit field (the protocol version of Hello / HelloReply), or -1.
   int leading_int() const {
     std::int32_t v = -1;
@@ -251,8 +335,24 @@ class Link {
   const std::string& peer_info() const { return peer_info_; }
   void set_peer_info(std::string s) { peer_info_ = std::move(s); }
 
-  /// DEM leader: sends the step header and waits for the ack (reply timeout).
-  StepAck step(const StepHeader& h);
+  /// Any rank: sends `bytes` to rank `dest` of the other side within the reply timeout.
+  /// Marks the peer unresponsive and rethrows on failure.
+  void send(int dest, int tag, const void* data, std::size_t bytes, const std::string& what);
+  template <class T>
+  void send_array(int dest, int tag, const std::vector<T>& items, const std::string& what) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    send(dest, tag, items.data(), items.size() * sizeof(T), what);
+  }
+  template <class T>
+  void send_struct(int dest, int tag, const T& item, const std::string& what) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    send(dest, tag, &item, sizeof(T), what);
+  }
+  /// Any rank: the next message from rank `source` of the other side with one of `tags`,
+  /// waiting at most `timeout_s` (< 0: the reply timeout). Marks the peer unresponsive and
+  /// rethrows on failure.
+  Message receive(int source, std::initializer_list<int> tags, const std::string& what, double timeout_s = -1,
+                  const std::atomic<bool>* peer_ended = nullptr);
   /// DEM leader: normal end. Idempotent.
   void finish(std::int64_t step);
   /// DEM leader: best effort notice that the DEM side stops on an error (waits <= 2 s).

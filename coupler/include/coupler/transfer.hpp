@@ -26,7 +26,10 @@ struct GrainView {
   const double* v = nullptr;       ///< velocity, same layout
   std::size_t stride = 3;
   const double* mass = nullptr;    ///< mass of grain g at mass[g]
-  const double* weight = nullptr;  ///< hybrid weight w in [0, 1] of grain g (share of its mass the DEM side carries)
+  /// Hybrid weight w in [0, 1] of grain g (share of its material the grain carries); nullptr:
+  /// the masses are already the carried masses (LAMMPS's rmass of a hybrid grain is w m).
+  const double* weight = nullptr;
+  double weight_of(std::size_t g) const { return weight != nullptr ? weight[g] : 1.0; }
 };
 
 /// Mass and momentum one side holds at a node.
@@ -72,7 +75,7 @@ std::vector<NodeMomentum<D>> grains_to_nodes(const GridGeometry<D>& grid, const 
   for (const Entry& e : entries) {
     if (nodes.empty() || nodes.back().node != e.node)
       nodes.push_back({e.node, 0.0, Eigen::Matrix<double, D, 1>::Zero()});  // {} would leave it uninitialised
-    const double m = e.w * grains.weight[e.grain] * grains.mass[e.grain];
+    const double m = e.w * grains.weight_of(e.grain) * grains.mass[e.grain];
     nodes.back().mass += m;
     nodes.back().momentum += m * detail::read<D>(grains.v, e.grain, grains.stride);
   }
@@ -87,24 +90,41 @@ Eigen::Matrix<double, D, 1> agreement_impulse(double m_mpm, const Eigen::Matrix<
   return (m_dem * p_mpm - m_mpm * p_dem) / (m_mpm + m_dem);
 }
 
-/// Velocity corrections dv_g = sum_i N_ig lambda_i / m_dem_i for each grain,
-/// given per node (sorted by node, as grains_to_nodes returns them) the DEM
-/// mass m_dem_i and the impulse lambda_i. Writes grains.count * D values to dv.
+/// What a node tells its grains after the agreement.
 template <int D>
-void grain_corrections(const GridGeometry<D>& grid, const GrainView& grains, const std::vector<NodeMomentum<D>>& dem,
-                       const std::vector<Eigen::Matrix<double, D, 1>>& lambda, double* dv) {
+struct AgreedNode {
+  Eigen::Matrix<double, D, 1> velocity = Eigen::Matrix<double, D, 1>::Zero();  ///< common node velocity
+  Eigen::Matrix<double, D, 1> impulse_per_mass = Eigen::Matrix<double, D, 1>::Zero();  ///< lambda_i / m_dem_i
+};
+
+/// Velocity change of each grain after the agreement, blending two updates that both add
+/// exactly sum_i lambda_i to the weighted grain momentum:
+///   impulse (pic = 0):  dv_g = sum_i N_ig lambda_i / m_dem_i   (DESIGN.md section 5)
+///   field   (pic = 1):  dv_g = sum_i N_ig v_i - v_g            (the grain takes the agreed field)
+/// The field update conserves because sum_g w_g m_g N_ig = m_dem_i and sum_i N_ig = 1.
+/// `nodes` are the grains' nodes sorted by index (grains_to_nodes), `agreed` the answers for
+/// them in the same order; m_dem_i in lambda_i / m_dem_i is the node's DEM mass over all
+/// DEM ranks. Writes grains.count * D values to dv.
+template <int D>
+void grain_velocity_updates(const GridGeometry<D>& grid, const GrainView& grains,
+                            const std::vector<NodeMomentum<D>>& nodes, const std::vector<AgreedNode<D>>& agreed,
+                            double pic, double* dv) {
+  using V = Eigen::Matrix<double, D, 1>;
   auto find = [&](std::size_t node) {
-    const auto it = std::lower_bound(dem.begin(), dem.end(), node,
+    const auto it = std::lower_bound(nodes.begin(), nodes.end(), node,
                                      [](const NodeMomentum<D>& n, std::size_t k) { return n.node < k; });
-    return static_cast<std::size_t>(it - dem.begin());
+    return static_cast<std::size_t>(it - nodes.begin());
   };
   for (std::size_t g = 0; g < grains.count; ++g) {
-    Eigen::Matrix<double, D, 1> sum = Eigen::Matrix<double, D, 1>::Zero();
+    V impulse = V::Zero(), field = V::Zero();
     detail::for_each_node<D>(grid, detail::read<D>(grains.x, g, grains.stride), [&](std::size_t node, double w) {
       const std::size_t i = find(node);
-      if (i < dem.size() && dem[i].node == node && dem[i].mass > 0) sum += (w / dem[i].mass) * lambda[i];
+      if (i == nodes.size() || nodes[i].node != node) return;  // not reached: every stencil node is listed
+      impulse += w * agreed[i].impulse_per_mass;
+      field += w * agreed[i].velocity;
     });
-    Eigen::Map<Eigen::Matrix<double, D, 1>>(dv + g * D) = sum;
+    const V v = detail::read<D>(grains.v, g, grains.stride);
+    Eigen::Map<V>(dv + g * D) = (1.0 - pic) * impulse + pic * (field - v);
   }
 }
 

@@ -12,18 +12,15 @@ namespace mpm {
 
 template <int D>
 struct Grid : coupler::GridGeometry<D> {
-  static constexpr int kPad = 3;
+  static constexpr int kPad = coupler::kGridPad;
 
   Vec<D> domain_lower = Vec<D>::Zero(), domain_upper = Vec<D>::Zero();
   std::vector<double> mass;      ///< node mass
   std::vector<Vec<D>> momentum;  ///< node momentum; velocity after the grid update
 
   Grid() = default;
-  Grid(const Vec<D>& lower, const Vec<D>& upper, double cell) : domain_lower(lower), domain_upper(upper) {
-    this->dx = cell;
-    this->origin = lower.array() - kPad * cell;
-    for (int a = 0; a < D; ++a)
-      this->dims[a] = static_cast<int>(std::ceil((upper[a] - lower[a]) / cell)) + 2 * kPad + 1;
+  Grid(const Vec<D>& lower, const Vec<D>& upper, double cell)
+      : coupler::GridGeometry<D>(coupler::padded_grid<D>(lower, upper, cell)), domain_lower(lower), domain_upper(upper) {
     mass.assign(this->num_nodes(), 0.0);
     momentum.assign(this->num_nodes(), Vec<D>::Zero());
   }

@@ -19,6 +19,9 @@ struct Particles {
   std::vector<double> J;        ///< volume ratio V/V0
   std::vector<double> plastic_strain;  ///< accumulated equivalent plastic shear strain
   std::vector<std::uint16_t> material; ///< index into the scene's materials
+  /// Coupled runs: share of its cell's material the point carries (1 - grain weight in
+  /// hybrid cells); float is plenty for a label that only output reads.
+  std::vector<float> weight;
 
   std::size_t size() const { return x.size(); }
   double volume(std::size_t p) const { return volume0[p] * J[p]; }
@@ -35,6 +38,7 @@ struct Particles {
     J.push_back(1.0);
     plastic_strain.push_back(0.0);
     material.push_back(mat);
+    weight.push_back(1.0f);
   }
 };
 

@@ -106,6 +106,8 @@ struct OutputSpec {
 
 struct Scene {
   int dimension = 2;
+  /// Coupled run: the points come from the DEM side (Solver::add_point), not from blocks.
+  bool coupled = false;
   Vec3 gravity{0, -9.81, 0};  ///< default: -9.81 m/s^2 along the last axis
   GridSpec grid;
   TimeSpec time;

@@ -38,6 +38,15 @@ class Solver {
   void p2g(double dt);
   void grid_update(double dt);
   void g2p(double dt);
+  /// Moves the clock (and the moving boundaries) on by dt: the end of a step.
+  void advance_clock(double dt);
+  /// Applies the boundary conditions to velocity v at grid node `node`.
+  void constrain_velocity(std::size_t node, Vec<D>& v) const { apply_boundaries(node, v); }
+  /// Adds a material point with the given state (coupled runs: points made from grains).
+  /// The elastic state is the one that gives `stress`; the stable step accounts for the
+  /// point's own density.
+  void add_point(const Vec<D>& x, const Vec<D>& v, const Mat<D>& C, double mass, double volume, const Mat<D>& stress,
+                 std::uint16_t material = 0);
   /// Reorders the points by grid cell so neighbours in memory are neighbours
   /// on the grid (cache locality, compact per-thread grid ranges).
   void sort_points_by_cell();
@@ -46,6 +55,7 @@ class Solver {
   const Particles<D>& points() const { return points_; }
   Particles<D>& points() { return points_; }
   const Grid<D>& grid() const { return grid_; }
+  Grid<D>& grid() { return grid_; }
   const std::vector<MaterialModel>& materials() const { return materials_; }
   double time() const { return time_; }
   long steps() const { return steps_; }

@@ -1,0 +1,241 @@
+#pragma once
+// Homogenisation of one grid cell: the grains in it become material points
+// that carry exactly the same mass, linear momentum and angular momentum
+// (DESIGN.md section 5). The points' angular momentum is the APIC one, which
+// includes the affine part C, so a cell's spin survives the conversion.
+//
+// Flow: each DEM rank sums the grains it owns into CellMoments (add_grain),
+// the partial sums travel as bytes and are added (add), the MPM side scales
+// them by the share of the material the points take over (scaled) and calls
+// points_from_moments.
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/Geometry>  // Vector3d::cross
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+#include <vector>
+
+#include "coupler/bspline.hpp"
+#include "coupler/grid_geometry.hpp"
+
+namespace coupler {
+
+/// Angular momentum: in 2D only its z component.
+template <int D>
+using Spin = std::conditional_t<D == 2, Eigen::Matrix<double, 1, 1>, Eigen::Vector3d>;
+
+template <int D>
+Spin<D> cross(const Eigen::Matrix<double, D, 1>& a, const Eigen::Matrix<double, D, 1>& b) {
+  if constexpr (D == 2)
+    return Spin<2>(a[0] * b[1] - a[1] * b[0]);
+  else
+    return a.cross(b);
+}
+
+/// Axial vector of the skew part of C, times 2: eps_abc C_cb.
+template <int D>
+Spin<D> axial(const Eigen::Matrix<double, D, D>& C) {
+  if constexpr (D == 2)
+    return Spin<2>(C(1, 0) - C(0, 1));
+  else
+    return Eigen::Vector3d(C(2, 1) - C(1, 2), C(0, 2) - C(2, 0), C(1, 0) - C(0, 1));
+}
+
+/// The rigid rotation rate with angular velocity w: skew(w) r = w x r.
+template <int D>
+Eigen::Matrix<double, D, D> skew(const Spin<D>& w) {
+  Eigen::Matrix<double, D, D> S;
+  if constexpr (D == 2)
+    S << 0, -w[0], w[0], 0;
+  else
+    S << 0, -w[2], w[1], w[2], 0, -w[0], -w[1], w[0], 0;
+  return S;
+}
+
+/// APIC angular momentum about the origin of a material point with quadratic
+/// B-splines. P2G gives node i the momentum w_i m (v + C (x_i - x_p)); its
+/// angular momentum sum_i x_i x (...) is x_p x m v plus m eps:(C D_p) with
+/// D_p = sum_i w_i (x_i - x_p)(x_i - x_p)^T = dx^2/4 I, since sum_i w_i (x_i - x_p) = 0.
+template <int D>
+Spin<D> point_angular_momentum(const Eigen::Matrix<double, D, 1>& x, const Eigen::Matrix<double, D, 1>& v,
+                               const Eigen::Matrix<double, D, D>& C, double mass, double dx) {
+  return cross<D>(x, mass * v) + (mass * dx * dx / kQuadraticInverseInertia) * axial<D>(C);
+}
+
+/// Extensive moments of the grains of one cell, additive over grains and over
+/// DEM ranks. Stored as plain double arrays (Eigen matrices are not trivially
+/// copyable) because it is sent over MPI as bytes; use the accessors.
+template <int D>
+struct CellMoments {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  using Mat = Eigen::Matrix<double, D, D>;
+  static constexpr int kSpinSize = D == 2 ? 1 : 3;
+
+  std::uint64_t cell = 0;  ///< flat cell index (cell_index)
+  double count = 0;        ///< number of grains
+  double mass = 0;         ///< sum m
+  double first_moment_[D] = {};           ///< sum m x
+  double momentum_[D] = {};               ///< sum m v
+  double angular_[kSpinSize] = {};        ///< sum x x m v + spin, about the origin
+  double stress_volume_[D * D] = {};      ///< sum stress*volume, tension positive, column-major
+
+  Eigen::Map<Vec> first_moment() { return Eigen::Map<Vec>(first_moment_); }
+  Eigen::Map<const Vec> first_moment() const { return Eigen::Map<const Vec>(first_moment_); }
+  Eigen::Map<Vec> momentum() { return Eigen::Map<Vec>(momentum_); }
+  Eigen::Map<const Vec> momentum() const { return Eigen::Map<const Vec>(momentum_); }
+  Eigen::Map<Spin<D>> angular() { return Eigen::Map<Spin<D>>(angular_); }
+  Eigen::Map<const Spin<D>> angular() const { return Eigen::Map<const Spin<D>>(angular_); }
+  Eigen::Map<Mat> stress_volume() { return Eigen::Map<Mat>(stress_volume_); }
+  Eigen::Map<const Mat> stress_volume() const { return Eigen::Map<const Mat>(stress_volume_); }
+
+  /// spin_L: the grain's own angular momentum (I omega); stress_volume as
+  /// LAMMPS compute stress/atom gives it.
+  void add_grain(const Vec& x, const Vec& v, double m, const Spin<D>& spin_L, const Mat& grain_stress_volume) {
+    count += 1;
+    mass += m;
+    first_moment() += m * x;
+    momentum() += m * v;
+    angular() += cross<D>(x, m * v) + spin_L;
+    stress_volume() += grain_stress_volume;
+  }
+  /// Adds another partial sum of the same cell.
+  void add(const CellMoments& o) {
+    count += o.count;
+    mass += o.mass;
+    first_moment() += o.first_moment();
+    momentum() += o.momentum();
+    angular() += o.angular();
+    stress_volume() += o.stress_volume();
+  }
+  /// The share of the cell's material that one representation takes over.
+  CellMoments scaled(double share) const {
+    CellMoments s = *this;
+    s.mass *= share;
+    s.first_moment() *= share;
+    s.momentum() *= share;
+    s.angular() *= share;
+    s.stress_volume() *= share;
+    return s;
+  }
+};
+static_assert(std::is_trivially_copyable_v<CellMoments<2>> && std::is_trivially_copyable_v<CellMoments<3>>,
+              "CellMoments is sent over MPI as bytes");
+
+template <int D>
+struct NewPoint {
+  Eigen::Matrix<double, D, 1> x, v;
+  Eigen::Matrix<double, D, D> C;
+  Eigen::Matrix<double, D, D> stress;
+  double mass, volume;
+};
+
+// Cells: the cell with lower corner node c, c in [0, dims-1) per axis, is
+// numbered row-major (last axis fastest) like GridGeometry::index.
+template <int D>
+std::size_t num_cells(const GridGeometry<D>& grid) {
+  std::size_t n = 1;
+  for (int a = 0; a < D; ++a) n *= static_cast<std::size_t>(grid.dims[a] - 1);
+  return n;
+}
+template <int D>
+std::size_t cell_index(const GridGeometry<D>& grid, const Eigen::Matrix<int, D, 1>& c) {
+  std::size_t k = static_cast<std::size_t>(c[0]);
+  for (int a = 1; a < D; ++a) k = k * static_cast<std::size_t>(grid.dims[a] - 1) + static_cast<std::size_t>(c[a]);
+  return k;
+}
+template <int D>
+Eigen::Matrix<int, D, 1> cell_of(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& x) {
+  return grid.to_cell_units(x).array().floor().template cast<int>().matrix();
+}
+template <int D>
+Eigen::Matrix<int, D, 1> cell_coords(const GridGeometry<D>& grid, std::size_t k) {
+  Eigen::Matrix<int, D, 1> c;
+  for (int a = D - 1; a >= 0; --a) {
+    const auto n = static_cast<std::size_t>(grid.dims[a] - 1);
+    c[a] = static_cast<int>(k % n);
+    k /= n;
+  }
+  return c;
+}
+template <int D>
+Eigen::Matrix<double, D, 1> cell_center(const GridGeometry<D>& grid, const Eigen::Matrix<int, D, 1>& c) {
+  return grid.origin + grid.dx * (c.template cast<double>().array() + 0.5).matrix();
+}
+
+/// per_axis^D points on a regular lattice in cell m.cell with equal masses,
+/// carrying m's mass, momentum and angular momentum exactly. volume_share in
+/// [0, 1] is the share of the cell the points fill (m already scaled by it):
+/// volume = share dx^D / n, stress = m.stress_volume / (share dx^D), so the
+/// points' sum of stress*volume is m.stress_volume and their stress is the
+/// unscaled cell stress S/dx^D. Empty if m.mass <= 0.
+///
+/// Velocities v_p = P/M + Omega x r_p, C_p = skew(Omega), r_p = x_p - X_c with
+/// X_c the lattice centre, so sum m_p r_p = 0. Then, as axial(skew(Omega)) = 2 Omega,
+///   sum_p L_p = X_c x P + sum_p m_p r_p x (Omega x r_p) + sum_p m_p dx^2/2 Omega
+///             = X_c x P + [sum_p m_p (|r_p|^2 I - r_p r_p^T + dx^2/2 I)] Omega,
+/// and Omega solves J Omega = L - X_c x P (2D: J = sum_p m_p (|r_p|^2 + dx^2/2)).
+template <int D>
+std::vector<NewPoint<D>> points_from_moments(const CellMoments<D>& m, const GridGeometry<D>& grid, int per_axis,
+                                             double volume_share) {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  using Mat = Eigen::Matrix<double, D, D>;
+  if (!(m.mass > 0) || per_axis < 1) return {};
+  int n = 1;
+  for (int a = 0; a < D; ++a) n *= per_axis;
+  const double cell_volume = std::pow(grid.dx, D);
+  const double mp = m.mass / n;
+  const Eigen::Matrix<int, D, 1> c = cell_coords(grid, static_cast<std::size_t>(m.cell));
+  const Vec lower = grid.node_position(c);
+  const Vec centre = cell_center(grid, c);
+  const Mat stress = volume_share > 0 ? Mat(m.stress_volume() / (volume_share * cell_volume)) : Mat(Mat::Zero());
+
+  std::vector<NewPoint<D>> points(static_cast<std::size_t>(n));
+  Mat J = Mat::Zero();  // 2D: J(0,0) holds the scalar; the rest is unused
+  for (int p = 0; p < n; ++p) {
+    Vec x;
+    for (int a = D - 1, k = p; a >= 0; --a, k /= per_axis) x[a] = lower[a] + (k % per_axis + 0.5) / per_axis * grid.dx;
+    const Vec r = x - centre;
+    if constexpr (D == 2)
+      J(0, 0) += mp * (r.squaredNorm() + grid.dx * grid.dx / 2);
+    else
+      J += mp * ((r.squaredNorm() + grid.dx * grid.dx / 2) * Mat::Identity() - r * r.transpose());
+    points[p].x = x;
+  }
+  const Vec V = m.momentum() / m.mass;
+  const Spin<D> L_int = m.angular() - cross<D>(centre, m.momentum().eval());
+  Spin<D> omega;
+  if constexpr (D == 2)
+    omega[0] = L_int[0] / J(0, 0);
+  else
+    omega = J.llt().solve(L_int);
+  const Mat C = skew<D>(omega);
+
+  for (NewPoint<D>& pt : points) {
+    pt.v = V + C * (pt.x - centre);
+    pt.C = C;
+    pt.stress = stress;
+    pt.mass = mp;
+    pt.volume = volume_share * cell_volume / n;
+  }
+  return points;
+}
+
+/// Sums of a set of points, with the APIC angular momentum; count = number of points.
+template <int D>
+CellMoments<D> moments_of_points(const std::vector<NewPoint<D>>& points, double dx, std::uint64_t cell = 0) {
+  CellMoments<D> s;
+  s.cell = cell;
+  for (const NewPoint<D>& p : points) {
+    s.count += 1;
+    s.mass += p.mass;
+    s.first_moment() += p.mass * p.x;
+    s.momentum() += p.mass * p.v;
+    s.angular() += point_angular_momentum<D>(p.x, p.v, p.C, p.mass, dx);
+    s.stress_volume() += p.volume * p.stress;
+  }
+  return s;
+}
+
+}  // namespace coupler

@@ -1,0 +1,73 @@
+#pragma once
+// Zones of the grid cells in a coupled run (DESIGN.md section 5): discrete cells hold grains
+// only, continuum cells material points only, hybrid cells both, each with a share of the
+// mass. The zone map is one byte per cell, computed once and shared by both sides.
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "coupler/conversion.hpp"
+#include "coupler/grid_geometry.hpp"
+
+namespace coupler {
+
+enum Zone : std::int8_t { kDiscrete = 0, kHybrid = 1, kContinuum = 2 };
+
+inline const char* zone_name(int zone) {
+  switch (zone) {
+    case kDiscrete: return "discrete";
+    case kHybrid: return "hybrid";
+    case kContinuum: return "continuum";
+    default: return "unknown";
+  }
+}
+
+/// Zone map from user-given continuum regions: a cell whose centre is inside them (`inside`)
+/// is continuum, unless a cell within `hybrid_width` cells (Chebyshev distance) is not - then
+/// it is hybrid. Cells whose centre lies outside the box [lower, upper] count as inside, so
+/// that the faces of the box (walls) do not make hybrid layers.
+template <int D, class Inside>
+std::vector<std::int8_t> zones_from_regions(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& lower,
+                                            const Eigen::Matrix<double, D, 1>& upper, int hybrid_width,
+                                            Inside&& inside) {
+  using IVec = Eigen::Matrix<int, D, 1>;
+  const std::size_t n = num_cells(grid);
+  IVec cells = grid.dims.array() - 1;
+  // outside[c]: a discrete cell; dilated by the hybrid width one axis at a time
+  // (a Chebyshev ball is the product of 1D intervals).
+  std::vector<std::uint8_t> outside(n);
+  for (std::size_t c = 0; c < n; ++c) {
+    const auto x = cell_center(grid, cell_coords(grid, c));
+    const bool in_box = (x.array() >= lower.array()).all() && (x.array() <= upper.array()).all();
+    outside[c] = in_box && !inside(x);
+  }
+  std::vector<std::uint8_t> near = outside;
+  for (int a = 0; a < D; ++a) {
+    std::vector<std::uint8_t> next(n, 0);
+    for (std::size_t c = 0; c < n; ++c) {
+      if (!near[c]) continue;
+      IVec i = cell_coords(grid, c);
+      const int centre = i[a];
+      for (int k = std::max(0, centre - hybrid_width); k <= std::min(cells[a] - 1, centre + hybrid_width); ++k) {
+        i[a] = k;
+        next[cell_index(grid, i)] = 1;
+      }
+    }
+    near.swap(next);
+  }
+  std::vector<std::int8_t> zones(n);
+  for (std::size_t c = 0; c < n; ++c) zones[c] = outside[c] ? kDiscrete : (near[c] ? kHybrid : kContinuum);
+  return zones;
+}
+
+/// Counts of cells per zone (index by Zone).
+inline std::array<std::size_t, 3> zone_counts(const std::vector<std::int8_t>& zones) {
+  std::array<std::size_t, 3> n{0, 0, 0};
+  for (auto z : zones) ++n[static_cast<std::size_t>(z)];
+  return n;
+}
+
+}  // namespace coupler

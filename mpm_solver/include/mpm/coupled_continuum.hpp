@@ -1,0 +1,63 @@
+#pragma once
+// The continuum of a coupled run: an MPM solver whose grid covers the DEM box, whose points
+// are made from grains, and which agrees with the grains on the node velocities of the
+// hybrid zone (DESIGN.md section 5). No MPI here: coupled.cpp moves the messages.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "coupler/conversion.hpp"
+#include "coupler/protocol.hpp"
+#include "mpm/output.hpp"
+#include "mpm/solver.hpp"
+
+namespace mpm {
+
+/// The scene of a coupled run, from the fix's Hello.
+Scene coupled_scene(const coupler::Hello& hello);
+
+template <int D>
+class CoupledContinuum {
+ public:
+  /// Throws UserError if the settings do not make a valid continuum.
+  explicit CoupledContinuum(const coupler::Hello& hello);
+
+  /// Grains of continuum and hybrid cells become points: the partial sums of every DEM
+  /// rank are added per cell and each cell's share (1 in continuum cells, 1 - grain weight
+  /// in hybrid cells) becomes points_per_axis^D points. Returns the acknowledgement.
+  coupler::StepAck convert(double time, std::vector<std::int8_t> zones,
+                           const std::vector<std::vector<coupler::CellMoments<D>>>& per_rank);
+
+  /// Advances the continuum to `time` in stable substeps and stops inside the last one,
+  /// after its grid update: the grid then holds the node velocities at `time`.
+  void advance_to(double time);
+  /// The velocity agreement on the nodes the DEM ranks sent (NodeRecord lists, one per
+  /// rank); returns the answers in the same order. Call between advance_to and finish_step.
+  std::vector<std::vector<coupler::NodeUpdate>> agree(const std::vector<std::vector<coupler::NodeRecord>>& per_rank);
+  /// Completes the substep (G2P) and returns the acknowledgement with the continuum totals.
+  coupler::StepAck finish_step(std::int64_t step);
+
+  /// Writes one frame (points, grid and the grains the DEM ranks sent).
+  void write_frame(const std::vector<std::vector<coupler::GrainRecord>>& grains, std::int64_t step);
+
+  const Solver<D>& solver() const { return solver_; }
+  double time() const { return time_; }
+
+ private:
+  coupler::StepAck totals(std::int64_t step) const;
+
+  coupler::Hello hello_;
+  Solver<D> solver_;
+  std::vector<std::int8_t> zones_;
+  double time_ = 0;                   ///< DEM time of the continuum's state
+  double pending_dt_ = -1;            ///< substep left open by advance_to (< 0: none)
+  int substeps_ = 0;
+  double mismatch_ = 0;
+  std::int64_t shared_nodes_ = 0;
+  std::vector<double> dem_mass_;      ///< scratch: DEM node mass, touched nodes only
+  std::vector<Vec<D>> dem_momentum_;
+  std::vector<std::size_t> touched_;
+  std::unique_ptr<SnapshotWriter<D>> writer_;
+};
+
+}  // namespace mpm

@@ -1,0 +1,251 @@
+#include "mpm/coupled_continuum.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include "coupler/zones.hpp"
+
+namespace mpm {
+
+Scene coupled_scene(const coupler::Hello& hello) {
+  const coupler::ContinuumSettings& c = hello.continuum;
+  Scene scene;
+  scene.dimension = hello.dimension;
+  scene.coupled = true;
+  for (int a = 0; a < 3; ++a) {
+    scene.gravity[a] = c.gravity[a];
+    scene.grid.lower[a] = hello.box_lo[a];
+    scene.grid.upper[a] = hello.box_hi[a];
+  }
+  scene.grid.cell_size = hello.cell;
+  scene.grid.walls = c.wall_contact == coupler::kWallSticky ? Contact::Sticky
+                     : c.wall_contact == coupler::kWallFriction ? Contact::Friction
+                                                                 : Contact::Slip;
+  scene.grid.wall_friction = c.wall_friction;
+  scene.time.cfl = c.cfl;
+  Material m;
+  m.name = "grains";
+  // The points' own density (grain mass over cell volume) sets their wave speed; this
+  // nominal bulk density only has to be valid.
+  m.density = c.critical_packing * c.grain_density;
+  if (hello.model == coupler::kModelMuI) {
+    m.model = ModelKind::MuI;
+    m.mu_i.youngs_modulus = c.youngs_modulus;
+    m.mu_i.poisson_ratio = c.poisson_ratio;
+    m.mu_i.mu_s = c.mu_s;
+    m.mu_i.mu_2 = c.mu_2;
+    m.mu_i.I0 = c.I0;
+    m.mu_i.grain_diameter = c.grain_diameter;
+    m.mu_i.grain_density = c.grain_density;
+    m.mu_i.critical_density = c.critical_packing * c.grain_density;
+  } else {
+    m.model = ModelKind::DruckerPrager;
+    m.drucker_prager.youngs_modulus = c.youngs_modulus;
+    m.drucker_prager.poisson_ratio = c.poisson_ratio;
+    m.drucker_prager.friction_angle_deg = c.friction_angle_deg;
+  }
+  scene.materials.push_back(m);
+  scene.output.progress_interval = 0;
+  return scene;
+}
+
+template <int D>
+CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
+    : hello_(hello), solver_(coupled_scene(hello)), time_(hello.time) {
+  const auto& grid = solver_.grid();
+  zones_.assign(coupler::num_cells(static_cast<const coupler::GridGeometry<D>&>(grid)), coupler::kDiscrete);
+  dem_mass_.assign(grid.num_nodes(), 0.0);
+  dem_momentum_.assign(grid.num_nodes(), Vec<D>::Zero());
+  const std::string dir = coupler::get_text(hello.continuum.output_path);
+  if (hello.continuum.output_every > 0 && !dir.empty()) {
+    Scene scene = solver_.scene();
+    scene.output.grid_fields = true;
+    writer_ = std::make_unique<SnapshotWriter<D>>(dir, scene);
+  }
+}
+
+template <int D>
+coupler::StepAck CoupledContinuum<D>::convert(double time, std::vector<std::int8_t> zones,
+                                              const std::vector<std::vector<coupler::CellMoments<D>>>& per_rank) {
+  const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(solver_.grid());
+  if (zones.size() != zones_.size()) {
+    coupler::StepAck ack;
+    ack.status = 1;
+    coupler::set_text(ack.message, "the zone map has " + std::to_string(zones.size()) + " cells, the grid " +
+                                       std::to_string(zones_.size()));
+    return ack;
+  }
+  zones_ = std::move(zones);
+  // Sum the ranks' partial moments per cell, in rank order (deterministic).
+  std::map<std::uint64_t, coupler::CellMoments<D>> cells;
+  for (const auto& list : per_rank)
+    for (const auto& m : list) {
+      if (m.cell >= zones_.size()) throw UserError("a DEM rank sent moments for cell " + std::to_string(m.cell) +
+                                                   " outside the grid");
+      auto it = cells.find(m.cell);
+      if (it == cells.end()) cells.emplace(m.cell, m);
+      else it->second.add(m);
+    }
+  const double grain_weight = hello_.continuum.grain_weight;
+  for (const auto& [cell, moments] : cells) {
+    const double share = zones_[cell] == coupler::kContinuum ? 1.0 : 1.0 - grain_weight;
+    for (const auto& p :
+         coupler::points_from_moments<D>(moments.scaled(share), geometry, hello_.continuum.points_per_axis, share)) {
+      solver_.add_point(p.x, p.v, p.C, p.mass, p.volume, p.stress);
+      solver_.points().weight.back() = static_cast<float>(share);
+    }
+  }
+  solver_.sort_points_by_cell();
+  time_ = time;
+  return totals(0);
+}
+
+template <int D>
+void CoupledContinuum<D>::advance_to(double time) {
+  const double interval = time - time_;
+  if (interval < -1e-12 * std::max(1.0, std::abs(time)))
+    throw UserError("the DEM time went backwards (from " + std::to_string(time_) + " s to " + std::to_string(time) +
+                    " s): a coupled run cannot reset its time step counter or time");
+  const double span = std::max(0.0, interval);
+  const double stable = solver_.stable_dt();
+  int substeps = 1;
+  if (std::isfinite(stable) && stable > 0) substeps = std::max(1, static_cast<int>(std::ceil(span / stable * (1 - 1e-12))));
+  const double h = span / substeps;
+  for (int k = 0; k + 1 < substeps; ++k) {
+    solver_.step(h);
+    if (solver_.steps() % 50 == 0) solver_.sort_points_by_cell();
+  }
+  solver_.p2g(h);
+  solver_.grid_update(h);
+  pending_dt_ = h;
+  substeps_ = substeps;
+}
+
+template <int D>
+std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
+    const std::vector<std::vector<coupler::NodeRecord>>& per_rank) {
+  Grid<D>& grid = solver_.grid();
+  const std::size_t n_nodes = grid.num_nodes();
+  // DEM mass and momentum of every node over all ranks.
+  for (const auto& list : per_rank)
+    for (const auto& r : list) {
+      if (r.node >= n_nodes)
+        throw UserError("a DEM rank sent node " + std::to_string(r.node) + " outside the grid of " +
+                        std::to_string(n_nodes) + " nodes");
+      if (dem_mass_[r.node] == 0.0) touched_.push_back(r.node);
+      dem_mass_[r.node] += r.mass;
+      dem_momentum_[r.node] += Eigen::Map<const Eigen::Vector3d>(r.momentum).head<D>();
+    }
+  // The agreement: both sides end with the common velocity (p_mpm + p_dem) / (m_mpm + m_dem),
+  // which the boundaries then constrain like any grid velocity. dem_momentum_ becomes the
+  // answer: the common velocity; dem_mass_ keeps m_dem for lambda / m_dem.
+  mismatch_ = 0;
+  shared_nodes_ = 0;
+  std::vector<Vec<D>> impulse_per_mass(touched_.size());
+  for (std::size_t t = 0; t < touched_.size(); ++t) {
+    const std::size_t k = touched_[t];
+    const double m_dem = dem_mass_[k];
+    const Vec<D> v_dem = m_dem > 0 ? Vec<D>(dem_momentum_[k] / m_dem) : Vec<D>::Zero();
+    const double m_mpm = grid.mass[k];
+    Vec<D> common = v_dem;
+    if (m_mpm > 0 && m_dem > 0) {
+      const Vec<D> v_mpm = grid.momentum[k];  // a velocity after the grid update
+      mismatch_ = std::max(mismatch_, (v_dem - v_mpm).norm());
+      common = (m_mpm * v_mpm + m_dem * v_dem) / (m_mpm + m_dem);
+      solver_.constrain_velocity(k, common);
+      grid.momentum[k] = common;
+      ++shared_nodes_;
+    }
+    impulse_per_mass[t] = common - v_dem;  // lambda_i / m_dem_i
+    dem_momentum_[k] = common;
+  }
+  std::vector<std::vector<coupler::NodeUpdate>> replies(per_rank.size());
+  std::map<std::size_t, std::size_t> slot;  // node -> index in touched_
+  for (std::size_t t = 0; t < touched_.size(); ++t) slot[touched_[t]] = t;
+  for (std::size_t r = 0; r < per_rank.size(); ++r) {
+    replies[r].resize(per_rank[r].size());
+    for (std::size_t i = 0; i < per_rank[r].size(); ++i) {
+      const std::size_t k = per_rank[r][i].node;
+      auto& u = replies[r][i];
+      const std::size_t t = slot[k];
+      for (int a = 0; a < D; ++a) {
+        u.velocity[a] = dem_momentum_[k][a];
+        u.impulse_per_mass[a] = impulse_per_mass[t][a];
+      }
+    }
+  }
+  for (std::size_t k : touched_) {
+    dem_mass_[k] = 0.0;
+    dem_momentum_[k].setZero();
+  }
+  touched_.clear();
+  return replies;
+}
+
+template <int D>
+coupler::StepAck CoupledContinuum<D>::finish_step(std::int64_t step) {
+  if (pending_dt_ >= 0) {
+    solver_.g2p(pending_dt_);
+    solver_.advance_clock(pending_dt_);
+    time_ += pending_dt_ * substeps_;
+  }
+  pending_dt_ = -1;
+  return totals(step);
+}
+
+template <int D>
+coupler::StepAck CoupledContinuum<D>::totals(std::int64_t step) const {
+  coupler::StepAck ack;
+  ack.step = step;
+  ack.substeps = substeps_;
+  const auto& pts = solver_.points();
+  ack.points = static_cast<std::int64_t>(pts.size());
+  ack.shared_nodes = shared_nodes_;
+  ack.mismatch = mismatch_;
+  ack.mpm_dt = pending_dt_ >= 0 ? pending_dt_ : 0.0;
+  Vec<D> p = Vec<D>::Zero();
+  coupler::Spin<D> L = coupler::Spin<D>::Zero();
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    ack.mass += pts.mass[i];
+    p += pts.mass[i] * pts.v[i];
+    L += coupler::point_angular_momentum<D>(pts.x[i], pts.v[i], pts.C[i], pts.mass[i], solver_.grid().dx);
+    ack.kinetic_energy += 0.5 * pts.mass[i] * pts.v[i].squaredNorm();
+  }
+  for (int a = 0; a < D; ++a) ack.momentum[a] = p[a];
+  if constexpr (D == 2) ack.angular[2] = L[0];
+  else
+    for (int a = 0; a < 3; ++a) ack.angular[a] = L[a];
+  return ack;
+}
+
+template <int D>
+void CoupledContinuum<D>::write_frame(const std::vector<std::vector<coupler::GrainRecord>>& grains,
+                                      std::int64_t step) {
+  if (!writer_) return;
+  GrainFrame frame;
+  for (const auto& list : grains)
+    for (const auto& g : list) {
+      frame.id.push_back(g.id);
+      frame.x.insert(frame.x.end(), g.x, g.x + 3);
+      frame.v.insert(frame.v.end(), g.v, g.v + 3);
+      frame.radius.push_back(g.radius);
+      frame.mass.push_back(g.mass);
+      frame.weight.push_back(g.weight);
+      frame.zone.push_back(static_cast<std::int8_t>(g.zone));
+    }
+  const auto& pts = solver_.points();
+  const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(solver_.grid());
+  PointCoupling coupling;
+  coupling.zone.resize(pts.size());
+  coupling.weight.assign(pts.weight.begin(), pts.weight.end());
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    coupling.zone[i] = zones_[coupler::cell_index<D>(geometry, coupler::cell_of<D>(geometry, pts.x[i]))];
+  writer_->write(pts, solver_.grid(), time_, step, &frame, &coupling);
+}
+
+template class CoupledContinuum<2>;
+template class CoupledContinuum<3>;
+
+}  // namespace mpm

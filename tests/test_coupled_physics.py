@@ -1,0 +1,115 @@
+"""Coupled LAMMPS + MPM physics (fix hybrid/mpm): conservation and velocity agreement.
+
+Decks under input_decks/hybrid/ run through tools/hybrid_launch.py; every run has a timeout.
+The totals come from the fix's thermo vector (grains' carried mass plus material points) and
+the frames the MPM process writes (grains and points in one HDF5 file).
+"""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import BUILD, REPO
+import mpm_results
+
+LAUNCH = REPO / "tools" / "hybrid_launch.py"
+MOMENTUM_DECK = REPO / "input_decks" / "hybrid" / "momentum_2d.lmp"
+
+
+def env() -> dict:
+    e = dict(os.environ, HYBRID_BUILD_DIR=str(BUILD), OMP_NUM_THREADS="1")
+    if os.geteuid() == 0:
+        e.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    return e
+
+
+def run_deck(tmp_path: Path, deck: Path, np_: int, *lammps_args: str, timeout: float = 300) -> str:
+    """Runs a coupled deck; returns the LAMMPS log text (fails on a non-zero exit)."""
+    log = tmp_path / "log.lammps"
+    proc = subprocess.run([sys.executable, str(LAUNCH), "-np", str(np_), str(deck), "-log", str(log),
+                           *lammps_args], capture_output=True, text=True, timeout=timeout, env=env(),
+                          cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return log.read_text()
+
+
+def thermo_rows(log: str) -> list[dict]:
+    """The thermo table of the (last) run as a list of {column: value}."""
+    lines = log.splitlines()
+    start = max(i for i, ln in enumerate(lines) if ln.split()[:1] == ["Step"])
+    header = lines[start].split()
+    rows = []
+    for ln in lines[start + 1:]:
+        if ln.startswith("Loop time"):
+            break
+        parts = ln.split()
+        if len(parts) == len(header) and re.match(r"^-?\d", parts[0]):  # not a message line
+            rows.append(dict(zip(header, map(float, parts))))
+    return rows
+
+
+@pytest.mark.parametrize("pic", [1, 0])
+@pytest.mark.parametrize("np_", [1, 2])
+def test_linear_momentum_of_grains_plus_points_is_conserved(tmp_path, hybrid_programs, np_, pic):
+    """No gravity, no walls in reach: grains collide, the continuum patch in the middle is
+    coupled through a ring of hybrid cells every step. Grains' carried momentum plus the
+    points' momentum stays what the grains alone had at step 0 (before the conversion)."""
+    log = run_deck(tmp_path, MOMENTUM_DECK, np_, "-var", "nsteps", "200", "-var", "pic", str(pic))
+    assert "grains became 64 material points" in log and "300 grains are hybrid" in log
+    rows = thermo_rows(log)
+    assert len(rows) == 21 and rows[-1]["Step"] == 200
+    first = rows[0]
+    assert first["f_couple[3]"] == 0  # step 0: no points yet
+    # scale of the momenta that cancel: total mass times the grains' speed (0.05 m/s)
+    scale = first["f_couple[8]"] * 0.05
+    for r in rows[1:]:
+        assert r["f_couple[3]"] == 64 and r["f_couple[2]"] >= 300
+        assert r["f_couple[8]"] == pytest.approx(first["f_couple[8]"], rel=1e-14)
+        for col in ("f_couple[9]", "f_couple[10]"):
+            assert abs(r[col] - first[col]) <= 1e-13 * scale, (r["Step"], col, r[col], first[col])
+    # the sides were not idle: the continuum moved and the sides disagreed before each agreement
+    assert max(r["f_couple[5]"] for r in rows[1:]) > 1e-4
+
+
+def bspline_weights(frac: np.ndarray) -> np.ndarray:
+    """Quadratic B-spline weights of the 3 nodes base, base+1, base+2 (frac = xi - base)."""
+    return np.stack([0.5 * (1.5 - frac) ** 2, 0.75 - (frac - 1.0) ** 2, 0.5 * (frac - 0.5) ** 2], axis=-1)
+
+
+def test_grain_velocities_take_the_agreed_node_velocity_field(tmp_path, hybrid_programs):
+    """With pic 1, after each coupling step a coupled grain's velocity equals the grid velocity
+    field at its position (quadratic B-splines over the agreed node velocities) to round-off.
+    Checked on the frames the MPM process writes: grains after their update, grid after the
+    agreement, computed here independently of the C++ transfer code."""
+    deck = tmp_path / "deck.lmp"
+    deck.write_text(MOMENTUM_DECK.read_text().replace(
+        "youngs 1.0e5", "youngs 1.0e5 output frames 5"))
+    run_deck(tmp_path, deck, 2, "-var", "nsteps", "20", "-var", "pic", "1")
+    out = tmp_path / "frames"
+    checked = 0
+    for frame in (1, 2, 3):
+        grains = mpm_results.read_grains(out, frame)
+        grid = mpm_results.read_grid(out, frame)
+        assert grains["step"] == grid["step"] and grains["step"] > 0
+        x = grains["position"][:, :2]
+        xi = (x - grid["origin"]) / grid["dx"]
+        base = np.floor(xi - 0.5).astype(int)
+        w = bspline_weights(xi - base)
+        coupled = (grains["weight"] < 1) | (grains["zone"] != 0)
+        for g in np.flatnonzero(coupled):
+            i0, j0 = base[g]
+            masses = grid["mass"][i0:i0 + 3, j0:j0 + 3]
+            if not (masses > 0).all():
+                continue  # nodes without points hold no MPM velocity in the file
+            field = np.einsum("i,j,ijd->d", w[g, 0], w[g, 1], grid["velocity"][i0:i0 + 3, j0:j0 + 3])
+            assert np.allclose(grains["velocity"][g, :2], field, rtol=0, atol=1e-14 + 1e-12 * np.abs(field).max())
+            checked += 1
+        # grains of discrete cells far from the continuum did not take the field
+        assert (~coupled).sum() > 0
+    assert checked > 100
