@@ -113,3 +113,80 @@ def test_grain_velocities_take_the_agreed_node_velocity_field(tmp_path, hybrid_p
         # grains of discrete cells far from the continuum did not take the field
         assert (~coupled).sum() > 0
     assert checked > 100
+
+
+COLUMN_DECK = REPO / "input_decks" / "hybrid" / "settled_column_2d.lmp"
+
+
+def read_dumps(path: Path) -> dict:
+    """LAMMPS custom dump -> {step: {column: array}}."""
+    out, lines, i = {}, path.read_text().splitlines(), 0
+    while i < len(lines):
+        if lines[i].startswith("ITEM: TIMESTEP"):
+            step, n = int(lines[i + 1]), int(lines[i + 3])
+            cols = lines[i + 8].split()[2:]
+            data = np.array([[float(v) for v in ln.split()] for ln in lines[i + 9:i + 9 + n]])
+            out[step] = {c: data[:, k] for k, c in enumerate(cols)}
+            i += 9 + n
+        else:
+            i += 1
+    return out
+
+
+def test_settled_hybrid_column_stays_at_rest_with_continuous_vertical_stress(tmp_path, hybrid_programs):
+    """A settled 2D column (hex packing, 546 grains) whose lower half becomes continuum stays at
+    rest for 10,000 coupled steps (no drift, no kinetic-energy growth), and the vertical stress,
+    as a fraction of the lithostatic stress (walls carry part of the weight, Janssen), is the
+    same just below the border in the continuum and just above it in the grains."""
+    log = run_deck(tmp_path, COLUMN_DECK, 2, "-var", "nsteps", "10000")
+    rows = [r for r in thermo_rows(log) if r["Step"] > 0]
+    assert rows[-1]["Step"] == 10000 and rows[-1]["f_couple[3]"] == 240
+    width, g, d = 0.04, 9.81, 0.002
+    # energy: tiny against the column's potential energy scale (the settled packing alone keeps
+    # about 4e-6 of it as vibration, see the settling thermo), and not growing
+    mass = rows[-1]["f_couple[8]"]
+    scale = mass * g * 0.05
+    ke = np.array([r["c_ke"] + r["f_couple[15]"] for r in rows])
+    assert ke.max() < 2e-5 * scale
+    half = len(ke) // 2
+    assert ke[half:].mean() <= 1.2 * ke[len(ke) // 10:half].mean()
+    # no drift of grains or points
+    dumps = read_dumps(tmp_path / "grains.dump")
+    first, last = dumps[0], dumps[10000]
+    _, ia, ib = np.intersect1d(first["id"], last["id"], return_indices=True)
+    assert len(ia) == 331
+    drift = np.hypot(first["x"][ia] - last["x"][ib], first["y"][ia] - last["y"][ib])
+    assert drift.max() < 0.05 * d
+    run = mpm_results.Run(tmp_path / "frames")
+    p0, p1 = run.frame(0), run.frame(-1)
+    assert np.abs(p1["position"] - p0["position"]).max() < 0.05 * d
+    # vertical stress over the lithostatic stress of the mass above (grains' carried mass + points)
+    grains = mpm_results.read_grains(tmp_path / "frames", -1)
+    all_y = np.concatenate([p1["position"][:, 1], grains["position"][:, 1]])
+    all_m = np.concatenate([p1["mass"], grains["mass"]])
+
+    def lithostatic(y: float) -> float:
+        return -g * all_m[all_y > y].sum() / width
+
+    dx = 0.004
+    cont = p1["zone"] == 2
+    top = p1["position"][cont, 1].max()
+    sel = cont & (p1["position"][:, 1] > top - dx / 2)  # the top row of continuum cells
+    y_mpm = p1["position"][sel, 1].mean()
+    ratio_mpm = p1["stress"][sel, 1, 1].mean() / lithostatic(y_mpm)
+    # grains: rows of the hex packing (spacing sqrt(3)/2 d), per-grain virial over row area
+    y, syy = last["y"], last["c_stress[2]"]
+    discrete_bottom = grains["position"][grains["zone"] == 0, 1].min()
+    h = np.sqrt(3) / 2 * d
+    row = np.round((y - y.min()) / h).astype(int)
+    ratios = []
+    for r in np.unique(row):
+        in_row = row == r
+        y_row = y[in_row].mean()
+        if discrete_bottom + h < y_row < discrete_bottom + dx + h:  # first rows clear of the hybrid band
+            ratios.append(syy[in_row].sum() / (width * h) / lithostatic(y_row))
+    assert len(ratios) >= 2
+    ratio_dem = float(np.mean(ratios))
+    assert 0.5 < ratio_mpm < 1.05 and 0.5 < ratio_dem < 1.05, (ratio_mpm, ratio_dem)
+    print(f"vertical stress over lithostatic: continuum {ratio_mpm:.3f}, grains {ratio_dem:.3f}; KE max {ke.max() / scale:.2e} of m g H")
+    assert abs(ratio_mpm - ratio_dem) < 0.05, (ratio_mpm, ratio_dem)
