@@ -52,7 +52,8 @@ namespace {
 
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
-    "grain_density, critical_packing, wall, cfl, pic, points_per_cell, inertia, output, every, timeout, idle";
+    "grain_density, critical_packing, wall, container, cfl, pic, support, points_per_cell, inertia, output, every, "
+    "timeout, idle";
 
 // Thermo vector entries (docs/fix_hybrid_mpm.md)
 enum {
@@ -85,7 +86,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), cell(-1.0), reply_timeout(30.0), idle_timeout(600.0),
     model(coupler::kModelDruckerPrager), every(1), hybrid_width(2), inertia(-1.0),
     settings(new coupler::ContinuumSettings), diameter_given(false), density_given(false), exchanges(0),
-    restart_exchanges(0), last_step(0), weight(nullptr), converted(false), convert_pending(false),
+    restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr), converted(false), convert_pending(false),
     stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1)
 {
   // fix ID group hybrid/mpm keyword value ...
@@ -151,12 +152,29 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
         if (c.wall_friction < 0.0) illegal("keyword 'wall friction' needs a coefficient >= 0");
         used = 3;
       } else illegal(fmt::format("keyword 'wall' must be sticky, slip or friction MU, not '{}'", val));
+    } else if (key == "container") {
+      // xlo xhi ylo yhi (zlo zhi): walls of the continuum; INF = the box face
+      const int nval = 2 * domain->dimension;
+      if (iarg + 1 + nval > narg)
+        illegal(fmt::format("keyword 'container' needs {} values (xlo xhi ylo yhi{}; INF = the box face)", nval,
+                            domain->dimension == 3 ? " zlo zhi" : ""));
+      for (int k = 0; k < nval; k++) {
+        const std::string v = arg[iarg + 1 + k];
+        container_given[k] = v != "INF" && v != "EDGE";
+        if (container_given[k]) container_value[k] = number("container", v);
+      }
+      used = 1 + nval;
     } else if (key == "cfl") {
       c.cfl = number(key, val);
       if (!(c.cfl > 0.0 && c.cfl <= 1.0)) illegal(fmt::format("keyword 'cfl' must be in (0, 1], not {}", val));
     } else if (key == "pic") {
       c.pic = number(key, val);
       if (!(c.pic >= 0.0 && c.pic <= 1.0)) illegal(fmt::format("keyword 'pic' must be in [0, 1], not {}", val));
+    } else if (key == "support") {
+      c.support_gain = number(key, val);
+      if (!(c.support_gain >= 0.0 && c.support_gain <= 1.0))
+        illegal(fmt::format("keyword 'support' (gain of the support force between exchanges) must be in [0, 1], "
+                            "not {}", val));
     } else if (key == "points_per_cell") {
       c.points_per_axis = integer(key, val);
       if (c.points_per_axis > 4) illegal("keyword 'points_per_cell' (points per cell and axis) must be 1 to 4");
@@ -185,7 +203,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
       illegal(fmt::format("continuum region '{}' does not exist (define it with the region command first)", rid));
   if (inertia < 0.0) inertia = domain->dimension == 2 ? 0.5 : 0.4;
 
-  nevery = every;
+  nevery = 1;               // the support force acts every step; exchanges every `every` steps
   scalar_flag = 1;           // f_ID = number of completed exchanges with the MPM process
   global_freq = 1;           // a count, valid on any step
   extscalar = 0;
@@ -196,12 +214,12 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   restart_peratom = 1;
   force_reneighbor = 1;      // the conversion deletes grains at a pre_exchange
   next_reneighbor = -1;
-  maxexchange = 1;
+  maxexchange = 4;
 
   grow_arrays(atom->nmax);
   atom->add_callback(Atom::GROW);
   atom->add_callback(Atom::RESTART);
-  for (int i = 0; i < atom->nlocal; i++) weight[i] = 1.0;
+  for (int i = 0; i < atom->nlocal; i++) set_arrays(i);
 
   // per-atom stress*volume for the Love-Weber stress of new material points
   if (!region_ids.empty()) {
@@ -220,6 +238,7 @@ FixHybridMPM::~FixHybridMPM()
   atom->delete_callback(id, Atom::GROW);
   atom->delete_callback(id, Atom::RESTART);
   memory->destroy(weight);
+  memory->destroy(support);
   if (stress_id && modify->find_compute(stress_id) >= 0) modify->delete_compute(stress_id);
   delete[] stress_id;
   if (!link) return;
@@ -314,6 +333,19 @@ void FixHybridMPM::connect()
   hello.step = update->ntimestep;
   hello.time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
   hello.continuum = *settings;
+  for (int d = 0; d < 3; d++) {
+    hello.continuum.container_lo[d] = domain->boxlo[d];
+    hello.continuum.container_hi[d] = domain->boxhi[d];
+  }
+  for (int d = 0; d < domain->dimension; d++)
+    for (int side = 0; side < 2; side++) {
+      if (!container_given[2 * d + side]) continue;
+      const double v = container_value[2 * d + side];
+      if (v < domain->boxlo[d] || v > domain->boxhi[d])
+        error->all(FLERR, fmt::format("Fix hybrid/mpm: container {} {} = {} lies outside the box ({} to {})",
+                                      "xyz"[d], side ? "hi" : "lo", v, domain->boxlo[d], domain->boxhi[d]));
+      (side ? hello.continuum.container_hi : hello.continuum.container_lo)[d] = v;
+    }
   // gravity of the grains acts on the continuum too
   for (int d = 0; d < 3; d++) hello.continuum.gravity[d] = 0.0;
   for (int i = 0; i < modify->nfix; i++)
@@ -516,8 +548,15 @@ void FixHybridMPM::convert()
 
 void FixHybridMPM::end_of_step()
 {
-  if (domain->dimension == 2) exchange<2>();
-  else exchange<3>();
+  // the continuum's support force on the coupled grains (an acceleration fixed at the last
+  // exchange; its impulse is taken from the points over the same interval)
+  const double dt = update->dt;
+  double **v = atom->v;
+  for (int i = 0; i < atom->nlocal; i++)
+    for (int a = 0; a < 3; a++) v[i][a] += dt * support[i][a];
+  if (update->ntimestep % every != 0) return;
+  if (domain->dimension == 2) exchange<2>(false);
+  else exchange<3>(false);
 }
 
 /* ----------------------------------------------------------------------
@@ -526,7 +565,7 @@ void FixHybridMPM::end_of_step()
 ------------------------------------------------------------------------- */
 
 template <int D>
-void FixHybridMPM::exchange()
+void FixHybridMPM::exchange(bool force_output)
 {
   const auto grid = box_grid<D>(domain, cell);
   double **x = atom->x, **v = atom->v;
@@ -561,7 +600,9 @@ void FixHybridMPM::exchange()
   MPI_Allreduce(&n_coupled_local, &n_coupled, 1, MPI_LMP_BIGINT, MPI_SUM, world);
   coupled_grains = n_coupled;
 
-  const bool output_frame = settings->output_every > 0 && (exchanges % settings->output_every) == 0;
+  const bool output_frame =
+      settings->output_every > 0 && (force_output || (exchanges % settings->output_every) == 0);
+  if (output_frame) last_output_step = update->ntimestep;
   int status = 0;
   std::string what;
   coupler::StepAck ack;
@@ -620,12 +661,17 @@ void FixHybridMPM::apply_updates(const coupler::GridGeometry<D> &grid, const cou
     for (int a = 0; a < D; ++a) {
       agreed[k].velocity[a] = updates[k].velocity[a];
       agreed[k].impulse_per_mass[a] = updates[k].impulse_per_mass[a];
+      agreed[k].support[a] = updates[k].support[a];
     }
-  std::vector<double> dv(index.size() * D);
-  coupler::grain_velocity_updates<D>(grid, view, nodes, agreed, settings->pic, dv.data());
+  std::vector<double> dv(index.size() * D), accel(index.size() * D);
+  coupler::grain_velocity_updates<D>(grid, view, nodes, agreed, settings->pic, dv.data(), accel.data());
   double **v = atom->v;
+  for (int i = 0; i < atom->nlocal; i++) support[i][0] = support[i][1] = support[i][2] = 0.0;
   for (std::size_t g = 0; g < index.size(); ++g)
-    for (int a = 0; a < D; ++a) v[index[g]][a] += dv[g * D + a];
+    for (int a = 0; a < D; ++a) {
+      v[index[g]][a] += dv[g * D + a];
+      support[index[g]][a] = accel[g * D + a];
+    }
 }
 
 /* ----------------------------------------------------------------------
@@ -681,6 +727,11 @@ void FixHybridMPM::fail(const char *file, int line, int status, const char *what
 
 void FixHybridMPM::post_run()
 {
+  // the state at the end of every run is in the output file (an exchange at this step)
+  if (link && settings->output_every > 0 && last_output_step != update->ntimestep && converted) {
+    if (domain->dimension == 2) exchange<2>(true);
+    else exchange<3>(true);
+  }
   last_step = update->ntimestep;
   if (comm->me == 0 && link)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} exchange(s) with the MPM process so far\n", exchanges));
@@ -741,7 +792,7 @@ void FixHybridMPM::fill_thermo_vector()
 
 double FixHybridMPM::memory_usage()
 {
-  return static_cast<double>(sizeof(*this)) + atom->nmax * sizeof(double) + zones.size() +
+  return static_cast<double>(sizeof(*this)) + atom->nmax * 4 * sizeof(double) + zones.size() +
       setup_stress.size() * sizeof(double);
 }
 
@@ -787,35 +838,41 @@ void FixHybridMPM::restart(char *buf)
 void FixHybridMPM::grow_arrays(int nmax)
 {
   memory->grow(weight, nmax, "hybrid/mpm:weight");
+  memory->grow(support, nmax, 3, "hybrid/mpm:support");
 }
 
 void FixHybridMPM::copy_arrays(int i, int j, int /*delflag*/)
 {
   weight[j] = weight[i];
+  for (int a = 0; a < 3; a++) support[j][a] = support[i][a];
 }
 
 void FixHybridMPM::set_arrays(int i)
 {
   weight[i] = 1.0;
+  support[i][0] = support[i][1] = support[i][2] = 0.0;
 }
 
 int FixHybridMPM::pack_exchange(int i, double *buf)
 {
   buf[0] = weight[i];
-  return 1;
+  for (int a = 0; a < 3; a++) buf[1 + a] = support[i][a];
+  return 4;
 }
 
 int FixHybridMPM::unpack_exchange(int nlocal, double *buf)
 {
   weight[nlocal] = buf[0];
-  return 1;
+  for (int a = 0; a < 3; a++) support[nlocal][a] = buf[1 + a];
+  return 4;
 }
 
 int FixHybridMPM::pack_restart(int i, double *buf)
 {
-  buf[0] = 2;    // values for this fix, count included (LAMMPS convention)
+  buf[0] = 5;    // values for this fix, count included (LAMMPS convention)
   buf[1] = weight[i];
-  return 2;
+  for (int a = 0; a < 3; a++) buf[2 + a] = support[i][a];
+  return 5;
 }
 
 void FixHybridMPM::unpack_restart(int nlocal, int nth)
@@ -824,16 +881,17 @@ void FixHybridMPM::unpack_restart(int nlocal, int nth)
   int m = 0;
   for (int i = 0; i < nth; i++) m += static_cast<int>(extra[nlocal][m]);
   weight[nlocal] = extra[nlocal][m + 1];
+  for (int a = 0; a < 3; a++) support[nlocal][a] = extra[nlocal][m + 2 + a];
 }
 
 int FixHybridMPM::size_restart(int /*nlocal*/)
 {
-  return 2;
+  return 5;
 }
 
 int FixHybridMPM::maxsize_restart()
 {
-  return 2;
+  return 5;
 }
 
 /* ---------------------------------------------------------------------- */

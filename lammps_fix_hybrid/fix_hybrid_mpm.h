@@ -73,13 +73,17 @@ class FixHybridMPM : public Fix {
   std::string output_path;                 // HDF5 file of grains and points ("" = none)
   std::unique_ptr<coupler::ContinuumSettings> settings;
   bool diameter_given, density_given;      // mu(I) grain size and density from the fix line
+  bool container_given[6] = {false, false, false, false, false, false};    // xlo xhi ylo yhi zlo zhi
+  double container_value[6] = {0, 0, 0, 0, 0, 0};
 
   std::unique_ptr<coupler::Link> link;    // connection to the MPM process (all ranks)
   bigint exchanges;                       // completed step exchanges (all runs)
   bigint restart_exchanges;               // exchanges read from a restart file
   bigint last_step;                       // last step seen (for the finish message)
+  bigint last_output_step;                // step of the last output frame
 
   double *weight;                         // per-atom share of its material a grain carries
+  double **support;                       // per-atom acceleration from the continuum until the next exchange
   std::vector<signed char> zones;         // coupler::Zone per grid cell (same on all ranks)
   bool converted;                         // grains of the continuum regions became points
   bool convert_pending;                   // conversion at the next pre_exchange
@@ -94,7 +98,7 @@ class FixHybridMPM : public Fix {
 
   void connect();
   template <int D> void convert();
-  template <int D> void exchange();
+  template <int D> void exchange(bool force_output);
   template <int D>
   void apply_updates(const coupler::GridGeometry<D> &grid, const coupler::GrainView &view,
                      const std::vector<coupler::NodeMomentum<D>> &nodes,

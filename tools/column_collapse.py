@@ -124,3 +124,47 @@ def normalised_runout(positions, width: float, cell_size: float) -> float:
     x = np.asarray(positions)[:, 0]
     front = float(np.max(x))
     return (front - width) / width
+
+
+def points_surface(positions, spacing: float, bin_width: float):
+    """Free surface of material points: (x centres, heights) per x bin, the top of the
+    highest point in each bin (its centre plus half the point spacing)."""
+    import numpy as np
+
+    x = np.asarray(positions)
+    if len(x) == 0:
+        return np.zeros(0), np.zeros(0)
+    edges = np.arange(0.0, x[:, 0].max() + bin_width, bin_width)
+    if len(edges) < 2:
+        edges = np.array([0.0, bin_width])
+    idx = np.clip(np.searchsorted(edges, x[:, 0], side="right") - 1, 0, len(edges) - 2)
+    top = np.full(len(edges) - 1, np.nan)
+    np.fmax.at(top, idx, x[:, -1] + 0.5 * spacing)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    keep = np.isfinite(top)
+    return centres[keep], top[keep]
+
+
+def combine_surfaces(*surfaces):
+    """The upper envelope of several (x, height) surfaces on their common x grid."""
+    import numpy as np
+
+    xs = [np.asarray(s[0]) for s in surfaces if len(s[0])]
+    x = np.unique(np.concatenate(xs)) if xs else np.zeros(0)
+    h = np.zeros_like(x)
+    for sx, sh in surfaces:
+        if len(sx):
+            h = np.maximum(h, np.interp(x, sx, sh, left=0.0, right=0.0))
+    return x, h
+
+
+def surface_error(surface, reference, height0: float) -> float:
+    """RMS difference of two final surfaces (x, height), from the wall to the farther front,
+    as a fraction of the column height H0; no material counts as height 0."""
+    import numpy as np
+
+    (x1, h1), (x2, h2) = surface, reference
+    x = np.linspace(0.0, max(np.max(x1), np.max(x2)), 400)
+    a = np.interp(x, x1, h1, left=0.0, right=0.0)
+    b = np.interp(x, x2, h2, left=0.0, right=0.0)
+    return float(np.sqrt(np.mean((a - b) ** 2)) / height0)

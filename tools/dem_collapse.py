@@ -207,10 +207,33 @@ def settled_path(aspect: float, width: float, d: float, seed: int, extra: dict) 
     return cache_root() / f"a{aspect:g}_w{width:g}_d{d:g}_s{seed}_{key}_{deck_hash}" / "settled.restart"
 
 
+def _lammps(variables: dict, out: Path, np_: int, lmp: str, timeout: float,
+            hybrid: bool = False) -> tuple[subprocess.CompletedProcess, float]:
+    """Runs the deck with `variables`: stock LAMMPS, or coupled through tools/hybrid_launch.py."""
+    args = ["-log", str(out / "log.lammps"), "-screen", "none"]
+    for k, v in variables.items():
+        args += ["-var", k, str(v)]
+    if hybrid:
+        cmd = [sys.executable, str(REPO / "tools" / "hybrid_launch.py"), "-np", str(np_), str(DECK)] + args
+    else:
+        cmd = [lmp, "-in", str(DECK)] + args
+        if np_ > 1:
+            cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
+    t0 = time.time()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    return proc, time.time() - t0
+
+
 def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
         out: str | Path | None = None, seed: int = 12345, use_cache: bool = True,
-        lmp: str = "lmp", timeout: float = 3600, extra_vars: dict | None = None) -> DemResult:
-    """Runs the DEM column collapse and returns the measured result."""
+        lmp: str = "lmp", timeout: float = 3600, extra_vars: dict | None = None,
+        hybrid_vars: dict | None = None) -> DemResult:
+    """Runs the DEM column collapse and returns the measured result.
+
+    hybrid_vars: run the collapse coupled (the deck's hybrid twin, `hybrid 1`) with these
+    extra deck variables (hx, hy, hcell, hevery, hyoungs, hphi); the settled column is the
+    same as the pure DEM run's (built with stock LAMMPS if not cached). The result then
+    holds the grains only; the continuum's points are in <out>/frames (HDF5)."""
     extra = {k: str(v) for k, v in (extra_vars or {}).items()}
     out = Path(out) if out else Path.cwd() / f"dem_collapse_a{aspect:g}"
     out.mkdir(parents=True, exist_ok=True)
@@ -223,18 +246,20 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
         target = settled
     variables = dict(aspect=aspect, width=width, d=d, out=str(out), settled=str(target),
                      prep=int(prep), seed=seed, **extra)
-    cmd = [lmp, "-in", str(DECK), "-log", str(out / "log.lammps"), "-screen", "none"]
-    for k, v in variables.items():
-        cmd += ["-var", k, str(v)]
-    if np_ > 1:
-        cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
-    t0 = time.time()
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
-    wall = time.time() - t0
+    hybrid = hybrid_vars is not None
+    if hybrid and prep:
+        # the settled column first, with stock LAMMPS, then the coupled collapse from it
+        proc, _ = _lammps(dict(variables, collapse=0), out, np_, lmp, timeout)
+        if proc.returncode != 0 or not target.exists():
+            raise RuntimeError(f"LAMMPS failed to prepare the column ({proc.returncode}):\n{proc.stderr[-2000:]}")
+        variables["prep"] = 0
+    if hybrid:
+        variables.update(hybrid=1, **{k: str(v) for k, v in hybrid_vars.items()})
+    proc, wall = _lammps(variables, out, np_, lmp, timeout, hybrid)
     log = (out / "log.lammps").read_text() if (out / "log.lammps").exists() else ""
     if proc.returncode != 0 or not (out / "final.dump").exists():
         tail = "\n".join(log.splitlines()[-30:])
-        raise RuntimeError(f"LAMMPS failed ({proc.returncode}): {' '.join(cmd)}\n{proc.stdout[-2000:]}"
+        raise RuntimeError(f"LAMMPS failed ({proc.returncode}): {' '.join(map(str, proc.args))}\n{proc.stdout[-2000:]}"
                            f"\n{proc.stderr[-2000:]}\n{tail}")
     if prep and use_cache:
         shutil.copyfile(target, settled)

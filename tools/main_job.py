@@ -22,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from column_collapse import ColumnCollapse, normalised_runout, published_runout_range  # noqa: E402
+from column_collapse import (ColumnCollapse, normalised_runout, points_surface,  # noqa: E402
+                             published_runout_range, surface_error)
 from dem_collapse import run as run_dem  # noqa: E402
 from mpm_results import load_run, surface_profile  # noqa: E402
 
@@ -93,14 +94,9 @@ def main() -> int:
     for r in results:
         error = "-"
         if dem is not None:
-            heights, edges = surface_profile(r["positions"], bins=200, return_edges=True)
-            centres = 0.5 * (edges[:-1] + edges[1:])
-            dem_x, dem_h = np.array(dem.profile).T
-            # Both surfaces on one x grid reaching the farther front; no material = height 0.
-            x = np.linspace(0.0, max(dem_x[-1], centres[-1]), 400)
-            mpm_on_x = np.interp(x, centres, np.nan_to_num(heights), left=0.0, right=0.0)
-            dem_on_x = np.interp(x, dem_x, dem_h, left=0.0, right=0.0)
-            r["surface_error"] = float(np.sqrt(np.mean((mpm_on_x - dem_on_x) ** 2)) / height0)
+            spacing = args.cell / 2  # 2 x 2 points per cell (ColumnCollapse)
+            mpm_surface = points_surface(r["positions"], spacing, 2 * 0.002)
+            r["surface_error"] = surface_error(mpm_surface, np.array(dem.profile).T, height0)
             error = f"{r['surface_error']:.1%}"
         lines.append(f"| MPM {r['model']} | {r['runout']:.2f} | {against_law(r['runout'])} | {error} | "
                      f"{r['height']:.2f} | {r['points']} points, {r['steps']} steps | {r['wall']:.1f} |")

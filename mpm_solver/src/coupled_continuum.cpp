@@ -5,6 +5,7 @@
 #include <map>
 #include <sstream>
 
+#include "coupler/stencil.hpp"
 #include "coupler/zones.hpp"
 
 namespace mpm {
@@ -24,6 +25,23 @@ Scene coupled_scene(const coupler::Hello& hello) {
                      : c.wall_contact == coupler::kWallFriction ? Contact::Friction
                                                                  : Contact::Slip;
   scene.grid.wall_friction = c.wall_friction;
+  // Container faces inside the box are walls too (the box faces always are).
+  const double tiny = 1e-12 * hello.cell;
+  for (int a = 0; a < hello.dimension; ++a)
+    for (int side = 0; side < 2; ++side) {
+      const double plane = side ? c.container_hi[a] : c.container_lo[a];
+      const double face = side ? hello.box_hi[a] : hello.box_lo[a];
+      if (std::abs(plane - face) <= tiny) continue;
+      Boundary wall;
+      wall.kind = BoundaryKind::Plane;
+      wall.contact = scene.grid.walls;
+      wall.friction = c.wall_friction;
+      wall.point = {0, 0, 0};
+      wall.point[a] = plane;
+      wall.normal = {0, 0, 0};
+      wall.normal[a] = side ? -1.0 : 1.0;
+      scene.boundaries.push_back(wall);
+    }
   scene.time.cfl = c.cfl;
   Material m;
   m.name = "grains";
@@ -51,6 +69,15 @@ Scene coupled_scene(const coupler::Hello& hello) {
   return scene;
 }
 
+namespace {
+/// Share of the support force each exchange forgets. Both sides feel the force through their
+/// transfer weights, which smooth it: a node-to-node oscillating part acts on neither side,
+/// so the agreement cannot correct it and a pure integral (no leak) lets it grow without
+/// bound (measured in a settled column: vertical stress 10 % above the weight). A 10 % leak
+/// keeps it bounded and leaves the steady support within a few percent.
+constexpr double kSupportLeak = 0.1;
+}  // namespace
+
 template <int D>
 CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
     : hello_(hello), solver_(coupled_scene(hello)), time_(hello.time) {
@@ -58,6 +85,7 @@ CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
   zones_.assign(coupler::num_cells(static_cast<const coupler::GridGeometry<D>&>(grid)), coupler::kDiscrete);
   dem_mass_.assign(grid.num_nodes(), 0.0);
   dem_momentum_.assign(grid.num_nodes(), Vec<D>::Zero());
+  support_force_.assign(grid.num_nodes(), Vec<D>::Zero());
   const std::string dir = coupler::get_text(hello.continuum.output_path);
   if (hello.continuum.output_every > 0 && !dir.empty()) {
     Scene scene = solver_.scene();
@@ -121,6 +149,7 @@ void CoupledContinuum<D>::advance_to(double time) {
   solver_.grid_update(h);
   pending_dt_ = h;
   substeps_ = substeps;
+  interval_ = span;
 }
 
 template <int D>
@@ -143,7 +172,15 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   // answer: the common velocity; dem_mass_ keeps m_dem for lambda / m_dem.
   mismatch_ = 0;
   shared_nodes_ = 0;
-  std::vector<Vec<D>> impulse_per_mass(touched_.size());
+  std::vector<Vec<D>> impulse_per_mass(touched_.size()), support(touched_.size(), Vec<D>::Zero());
+  // The support force between exchanges: what the agreement had to add over the last
+  // interval becomes a steady force for the next one (F += gain * lambda / interval), so
+  // grains resting on the continuum are held between exchanges, not only at them.
+  const double gain = hello_.continuum.support_gain;
+  std::vector<Vec<D>> old_force(touched_.size());
+  for (std::size_t t = 0; t < touched_.size(); ++t) old_force[t] = support_force_[touched_[t]];
+  for (std::size_t k : support_nodes_) support_force_[k].setZero();
+  support_nodes_.clear();
   for (std::size_t t = 0; t < touched_.size(); ++t) {
     const std::size_t k = touched_[t];
     const double m_dem = dem_mass_[k];
@@ -157,6 +194,13 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       solver_.constrain_velocity(k, common);
       grid.momentum[k] = common;
       ++shared_nodes_;
+      if (gain > 0) {
+        Vec<D> force = (1.0 - kSupportLeak) * old_force[t];
+        if (interval_ > 0) force += gain * m_dem * (common - v_dem) / interval_;
+        support_force_[k] = force;
+        support_nodes_.push_back(k);
+        support[t] = force / m_dem;
+      }
     }
     impulse_per_mass[t] = common - v_dem;  // lambda_i / m_dem_i
     dem_momentum_[k] = common;
@@ -173,6 +217,7 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       for (int a = 0; a < D; ++a) {
         u.velocity[a] = dem_momentum_[k][a];
         u.impulse_per_mass[a] = impulse_per_mass[t][a];
+        u.support[a] = support[t][a];
       }
     }
   }
@@ -184,9 +229,30 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   return replies;
 }
 
+/// The points' share of the reaction to the support force, -F_i split over the points by
+/// their mass at the node: sum_p m_p a_p = -sum_i F_i exactly. Uses the weights of the
+/// current substep's P2G (call before G2P moves the points).
+template <int D>
+void CoupledContinuum<D>::apply_support_reaction() {
+  auto& pts = solver_.points();
+  std::fill(pts.body_accel.begin(), pts.body_accel.end(), Vec<D>::Zero());
+  if (support_nodes_.empty()) return;
+  const Grid<D>& grid = solver_.grid();
+  const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(grid);
+  for (std::size_t p = 0; p < pts.size(); ++p) {
+    Vec<D> a = Vec<D>::Zero();
+    coupler::for_each_stencil_node<D>(coupler::QuadraticStencil<D>(grid.to_cell_units(pts.x[p])), geometry,
+                                      [&](std::size_t k, double w, const auto&) {
+                                        if (grid.mass[k] > 0) a -= (w / grid.mass[k]) * support_force_[k];
+                                      });
+    pts.body_accel[p] = a;
+  }
+}
+
 template <int D>
 coupler::StepAck CoupledContinuum<D>::finish_step(std::int64_t step) {
   if (pending_dt_ >= 0) {
+    apply_support_reaction();
     solver_.g2p(pending_dt_);
     solver_.advance_clock(pending_dt_);
     time_ += pending_dt_ * substeps_;

@@ -261,7 +261,7 @@ void Solver<D>::p2g(double dt) {
       const double m = points_.mass[p];
       // MLS-MPM: the stress force and the APIC affine momentum share one matrix.
       const Mat<D> affine = m * points_.C[p] - (stress_scale * points_.volume(p)) * points_.stress[p];
-      const Vec<D> mv = m * points_.v[p];
+      const Vec<D> mv = m * (points_.v[p] + dt * points_.body_accel[p]);
       const std::size_t base = grid_.index(st.base);
       lo = std::min(lo, base);
       hi = std::max(hi, base + span + 1);
@@ -438,6 +438,7 @@ void Solver<D>::sort_points_by_cell() {
   permute(points_.plastic_strain);
   permute(points_.material);
   permute(points_.weight);
+  permute(points_.body_accel);
 }
 
 template <int D>

@@ -84,9 +84,15 @@ struct ContinuumSettings {
   double gravity[3] = {0, 0, 0};      ///< m/s^2 (from LAMMPS fix gravity)
   std::int32_t wall_contact = kWallSlip;
   double wall_friction = 0.0;
+  /// Walls of the continuum (planes with wall_contact); the box faces unless the fix's
+  /// `container` keyword puts them inside the box (e.g. on a DEM floor above the box bottom).
+  double container_lo[3] = {0, 0, 0}, container_hi[3] = {0, 0, 0};
   double cfl = 0.5;                   ///< MPM substep = cfl * dx / (c + |v|max)
   double grain_weight = 0.5;          ///< share of a hybrid cell's mass its grains keep
   double pic = 1.0;                   ///< grain update: 1 = take the agreed field, 0 = impulse only
+  /// Gain of the support force between exchanges (0 = none): each exchange adds
+  /// support_gain * lambda / interval to the force the sides exert on each other at a node.
+  double support_gain = 1.0;
   std::int32_t points_per_axis = 2;   ///< material points per cell and axis
   std::int32_t output_every = 0;      ///< exchanges between output frames, 0 = none
   char output_path[kTextSize] = {};   ///< HDF5 file the MPM process writes frames to
@@ -165,6 +171,7 @@ struct NodeRecord {
 struct NodeUpdate {
   double velocity[3] = {0, 0, 0};
   double impulse_per_mass[3] = {0, 0, 0};
+  double support[3] = {0, 0, 0};     ///< support force F_i / m_dem_i until the next exchange, m/s^2
 };
 
 /// DEM rank -> MPM at output frames: one grain.

@@ -95,6 +95,7 @@ template <int D>
 struct AgreedNode {
   Eigen::Matrix<double, D, 1> velocity = Eigen::Matrix<double, D, 1>::Zero();  ///< common node velocity
   Eigen::Matrix<double, D, 1> impulse_per_mass = Eigen::Matrix<double, D, 1>::Zero();  ///< lambda_i / m_dem_i
+  Eigen::Matrix<double, D, 1> support = Eigen::Matrix<double, D, 1>::Zero();  ///< F_i / m_dem_i
 };
 
 /// Velocity change of each grain after the agreement, blending two updates that both add
@@ -104,11 +105,13 @@ struct AgreedNode {
 /// The field update conserves because sum_g w_g m_g N_ig = m_dem_i and sum_i N_ig = 1.
 /// `nodes` are the grains' nodes sorted by index (grains_to_nodes), `agreed` the answers for
 /// them in the same order; m_dem_i in lambda_i / m_dem_i is the node's DEM mass over all
-/// DEM ranks. Writes grains.count * D values to dv.
+/// DEM ranks. Writes grains.count * D values to dv and, if `support` is given, the
+/// acceleration sum_i N_ig F_i / m_dem_i each grain gets until the next exchange (whose
+/// impulse over the grains, sum_g w_g m_g a_g, is exactly sum_i F_i, as for lambda).
 template <int D>
 void grain_velocity_updates(const GridGeometry<D>& grid, const GrainView& grains,
                             const std::vector<NodeMomentum<D>>& nodes, const std::vector<AgreedNode<D>>& agreed,
-                            double pic, double* dv) {
+                            double pic, double* dv, double* support = nullptr) {
   using V = Eigen::Matrix<double, D, 1>;
   auto find = [&](std::size_t node) {
     const auto it = std::lower_bound(nodes.begin(), nodes.end(), node,
@@ -116,15 +119,17 @@ void grain_velocity_updates(const GridGeometry<D>& grid, const GrainView& grains
     return static_cast<std::size_t>(it - nodes.begin());
   };
   for (std::size_t g = 0; g < grains.count; ++g) {
-    V impulse = V::Zero(), field = V::Zero();
+    V impulse = V::Zero(), field = V::Zero(), accel = V::Zero();
     detail::for_each_node<D>(grid, detail::read<D>(grains.x, g, grains.stride), [&](std::size_t node, double w) {
       const std::size_t i = find(node);
       if (i == nodes.size() || nodes[i].node != node) return;  // not reached: every stencil node is listed
       impulse += w * agreed[i].impulse_per_mass;
       field += w * agreed[i].velocity;
+      accel += w * agreed[i].support;
     });
     const V v = detail::read<D>(grains.v, g, grains.stride);
     Eigen::Map<V>(dv + g * D) = (1.0 - pic) * impulse + pic * (field - v);
+    if (support != nullptr) Eigen::Map<V>(support + g * D) = accel;
   }
 }
 

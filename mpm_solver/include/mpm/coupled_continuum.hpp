@@ -45,6 +45,7 @@ class CoupledContinuum {
 
  private:
   coupler::StepAck totals(std::int64_t step) const;
+  void apply_support_reaction();
 
   coupler::Hello hello_;
   Solver<D> solver_;
@@ -57,6 +58,9 @@ class CoupledContinuum {
   std::vector<double> dem_mass_;      ///< scratch: DEM node mass, touched nodes only
   std::vector<Vec<D>> dem_momentum_;
   std::vector<std::size_t> touched_;
+  double interval_ = 0;               ///< time since the previous exchange, s
+  std::vector<Vec<D>> support_force_; ///< force of the continuum on the grains per node until the next exchange
+  std::vector<std::size_t> support_nodes_;  ///< nodes where support_force_ is set
   std::unique_ptr<SnapshotWriter<D>> writer_;
 };
 

@@ -22,6 +22,9 @@ struct Particles {
   /// Coupled runs: share of its cell's material the point carries (1 - grain weight in
   /// hybrid cells); float is plenty for a label that only output reads.
   std::vector<float> weight;
+  /// Coupled runs: acceleration from the support force of the grains until the next
+  /// exchange (zero otherwise), m/s^2.
+  std::vector<Vec<D>> body_accel;
 
   std::size_t size() const { return x.size(); }
   double volume(std::size_t p) const { return volume0[p] * J[p]; }
@@ -39,6 +42,7 @@ struct Particles {
     plastic_strain.push_back(0.0);
     material.push_back(mat);
     weight.push_back(1.0f);
+    body_accel.push_back(Vec<D>::Zero());
   }
 };
 

@@ -1,0 +1,507 @@
+#!/usr/bin/env python3
+"""Coupling overhead of fix hybrid/mpm: LAMMPS loop time per step of a coupled run versus the
+same LAMMPS run without the fix, with the hybrid (coupled) grains about 15 % of all grains.
+
+The deck is input_decks/hybrid/overhead_2d.lmp: a 2D bed of touching 2 mm disks under gravity
+on a floor, whose lower part is continuum. Both cases integrate the same grains: without the fix
+(`-var couple 0`, lmp_hybrid alone through tools/mpirun.sh) the deck deletes the grains the fix
+would turn into material points and puts the floor under the lowest remaining row; with the fix
+(`-var couple 1`, tools/hybrid_launch.py, one MPM process) they become points at step 1. Each
+run has a warm-up run (the conversion, the bed taking its weight) and then the timed run, whose
+"Loop time" and timing breakdown are read from the LAMMPS log. The cases run interleaved, the
+whole set repeated; the tables give medians.
+
+Target (project brief): overhead <= 5 % of a LAMMPS step when hybrid grains are <= 20 %.
+
+Usage: bench/coupling_overhead.py [--quick] [--reps 3] [--every 1 10] [--np 1] [--profile]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shlex
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+DECK = REPO / "input_decks" / "hybrid" / "overhead_2d.lmp"
+LMP = REPO / "build" / "lammps_fix_hybrid" / "lmp_hybrid"
+MPM = REPO / "build" / "mpm_solver" / "mpm_solver"
+MPIRUN = REPO / "tools" / "mpirun.sh"
+LAUNCH = REPO / "tools" / "hybrid_launch.py"
+TARGET = 0.05          # overhead of a LAMMPS step
+RUN_TIMEOUT = 180.0    # s, one LAMMPS job
+
+SIZES = {  # bed width (m), timed steps, warm-up steps
+    "full": {"width": 1.0, "nsteps": 2000, "warmup": 500},
+    "quick": {"width": 0.5, "nsteps": 500, "warmup": 200},
+}
+
+
+# ----------------------------------------------------------------------------- one run
+
+def case_command(case: dict, size: dict, log: Path) -> list[str]:
+    lammps_vars = ["-var", "couple", "1" if case["couple"] else "0", "-var", "trim", "1" if case["trim"] else "0",
+                   "-var", "every", str(case.get("every", 1)), "-var", "width", str(size["width"]),
+                   "-var", "nsteps", str(size["nsteps"]), "-var", "warmup", str(size["warmup"]),
+                   "-log", str(log)]
+    if case["couple"]:
+        return [sys.executable, str(LAUNCH), "-np", str(case["np"]), str(DECK), *lammps_vars]
+    return [str(MPIRUN), "-np", str(case["np"]), str(LMP), "-in", str(DECK), *lammps_vars]
+
+
+def cpu_times() -> tuple[float, float]:
+    """(total, steal) jiffies of all CPUs, from /proc/stat."""
+    fields = Path("/proc/stat").read_text().splitlines()[0].split()[1:]
+    values = [float(x) for x in fields]
+    return sum(values[:8]), values[7] if len(values) > 7 else 0.0
+
+
+def parse_log(text: str) -> dict:
+    """The last run of a LAMMPS log: loop time, timing breakdown, CPU use, last thermo line."""
+    loops = list(re.finditer(r"Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps with (\d+) atoms", text))
+    if not loops:
+        raise ValueError("no 'Loop time' line in the log")
+    last = loops[-1]
+    out = {"loop_time": float(last.group(1)), "procs": int(last.group(2)), "steps": int(last.group(3)),
+           "atoms": int(last.group(4))}
+    tail = text[last.end():]
+    m = re.search(r"([0-9.]+)% CPU use", tail)
+    out["cpu_use_percent"] = float(m.group(1)) if m else None
+    sections = {}
+    for name in ("Pair", "Neigh", "Comm", "Output", "Modify", "Other"):
+        m = re.search(rf"^{name}\s*\|([^\n]*)$", tail, re.M)
+        if m:
+            cols = [c.strip() for c in m.group(1).split("|")]
+            # Section | min | avg | max | %varavg | %total ("Other" has min, max empty)
+            sections[name] = float(cols[1]) if cols[1] else None
+    out["sections"] = sections
+    # thermo block of the last run: header "Step ..." then rows, up to the Loop line
+    head = text[:last.start()]
+    headers = list(re.finditer(r"^\s*Step\s.*$", head, re.M))
+    if headers:
+        names = headers[-1].group(0).split()
+        rows = [ln.split() for ln in head[headers[-1].end():].splitlines()]
+        rows = [r for r in rows if len(r) == len(names) and re.fullmatch(r"-?\d+", r[0])]
+        if rows:
+            out["thermo"] = {n: float(v) for n, v in zip(names, rows[-1])}
+    m = re.search(r"fix hybrid/mpm: step \d+: (\d+) grains became (\d+) material points, (\d+) grains are hybrid", text)
+    if m:
+        out["converted_grains"], out["points"], out["hybrid_grains"] = (int(g) for g in m.groups())
+    return out
+
+
+def busy_cores(interval: float = 1.0) -> float:
+    """Cores kept busy (by anybody) over `interval` seconds, from /proc/stat."""
+    def sample():
+        v = [float(x) for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
+        return sum(v[:8]), v[3] + v[4]   # total, idle + iowait
+    t0, i0 = sample()
+    time.sleep(interval)
+    t1, i1 = sample()
+    return (os.cpu_count() or 1) * (1.0 - (i1 - i0) / max(t1 - t0, 1.0))
+
+
+def wait_for_quiet(limit: float, max_wait: float) -> float:
+    """Waits (at most max_wait s) until other processes keep fewer than `limit` cores busy; returns the last
+    measured load in cores."""
+    t0 = time.time()
+    while True:
+        b = busy_cores()
+        if b < limit or time.time() - t0 > max_wait:
+            return b
+
+
+def run_case(case: dict, size: dict, work: Path, tag: str, quiet: tuple[float, float] = (0.3, 0.0)) -> dict:
+    log = work / f"{tag}.log"
+    cmd = case_command(case, size, log)
+    env = dict(os.environ, OMP_NUM_THREADS="1")   # LAMMPS and mpm_solver: one thread each
+    others = wait_for_quiet(*quiet) if quiet[1] > 0 else None
+    load = os.getloadavg()[0]
+    tot0, st0 = cpu_times()
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                          timeout=RUN_TIMEOUT)
+    wall = time.perf_counter() - t0
+    tot1, st1 = cpu_times()
+    (work / f"{tag}.out").write_text(proc.stdout)
+    if proc.returncode != 0:
+        sys.exit(f"coupling_overhead: {shlex.join(cmd)} failed (exit {proc.returncode}):\n{proc.stdout[-3000:]}")
+    r = parse_log(log.read_text())
+    r.update(case=case["name"], job_wall_s=wall, loadavg_1min_before=load, busy_cores_before=others,
+             steal_percent=100.0 * (st1 - st0) / max(tot1 - tot0, 1.0))
+    r["step_s"] = r["loop_time"] / r["steps"]
+    return r
+
+
+# ----------------------------------------------------------------------------- profile (perf)
+
+def descendants(pid: int) -> dict[int, str]:
+    """pid -> comm of all processes below pid."""
+    children: dict[int, list[int]] = {}
+    comm: dict[int, str] = {}
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            stat = (d / "stat").read_text()
+        except OSError:
+            continue
+        name = stat[stat.index("(") + 1:stat.rindex(")")]
+        ppid = int(stat[stat.rindex(")") + 2:].split()[1])
+        children.setdefault(ppid, []).append(int(d.name))
+        comm[int(d.name)] = name
+    out, todo = {}, [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            out[c] = comm[c]
+            todo.append(c)
+    return out
+
+
+LAMMPS_GROUPS = [  # (group, regex on "dso symbol"), first match wins
+    ("fix hybrid/mpm: waiting for the MPM process (poll, yield, sleep, MPI)",
+     r"\[k\]|sched_yield|nanosleep|clock_gettime|mca_|libmpi|libopen-pal|libopen-rte|opal_|ompi_|PMPI_|"
+     r"coupler::recv_message|coupler::Link|Backoff|libucs|libuct|libucp|libfabric|libevent|libhwloc"),
+    ("fix hybrid/mpm: own DEM-side work (grains to nodes, updates, zone lookups)",
+     r"FixHybridMPM|coupler::"),
+    ("LAMMPS: pair", r"Pair"),
+    ("LAMMPS: other (integration, walls, neighbor, ...)", r"LAMMPS_NS::"),
+    ("libc (memcpy, memset, malloc; both)", r"libc|libstdc"),
+]
+MPM_GROUPS = [
+    ("waiting for LAMMPS (poll, yield, sleep, MPI)",
+     r"\[k\]|sched_yield|nanosleep|clock_gettime|mca_|libmpi|libopen-pal|opal_|ompi_|PMPI_|coupler::recv_message|"
+     r"coupler::Link|libevent|libhwloc"),
+    ("MPM step (P2G, grid, G2P, model) and the agreement", r"mpm::|coupler::"),
+    ("libc (memcpy, memset, malloc)", r"libc|libstdc|libgomp"),
+]
+
+
+def perf_groups(data: Path, groups: list[tuple[str, str]]) -> dict:
+    """Self samples of a perf.data file summed by groups of symbols."""
+    text = subprocess.run(["perf", "report", "-i", str(data), "--stdio", "--no-children", "-n", "-g", "none",
+                           "--sort", "dso,sym", "-t", "\t", "--percent-limit", "0"],
+                          stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True).stdout
+    sums = {g: 0 for g, _ in groups}
+    sums["other"] = 0
+    by_group: dict[str, dict[str, int]] = {g: {} for g, _ in groups}
+    top: list[tuple[int, str]] = []
+    for line in text.splitlines():
+        if line.startswith("#") or not line.strip():
+            continue
+        parts = line.split("\t")
+        if len(parts) < 4:
+            continue
+        try:
+            samples = int(parts[1].strip())
+        except ValueError:
+            continue
+        key = f"{parts[2].strip()} {parts[3].strip()}"
+        top.append((samples, key))
+        for g, rx in groups:
+            if re.search(rx, key):
+                sums[g] += samples
+                short = short_symbol(parts[3].strip())
+                by_group[g][short] = by_group[g].get(short, 0) + samples
+                break
+        else:
+            sums["other"] += samples
+    top.sort(reverse=True)
+    tops = {g: sorted(d.items(), key=lambda kv: -kv[1])[:6] for g, d in by_group.items()}
+    return {"groups": sums, "total": sum(sums.values()), "top": top[:12], "top_by_group": tops}
+
+
+def short_symbol(sym: str) -> str:
+    """'[.] std::__merge_sort_with_buffer<...coupler::grains_to_nodes<2>...>' -> 'std::__merge_sort_with_buffer
+    (in coupler::grains_to_nodes)'; template arguments and parameters dropped."""
+    sym = re.sub(r"^\[[.k]\]\s*", "", sym)
+    head = re.split(r"[<(]", sym, maxsplit=1)[0]
+    if head.startswith("std::") or "lambda" in sym:
+        inner = re.findall(r"((?:coupler|mpm|LAMMPS_NS)::[A-Za-z_:]+)", sym)
+        if inner and not head.startswith(inner[0]):
+            return f"{head} (in {inner[0]})"
+    return head
+
+
+def profile_case(case: dict, size: dict, work: Path, seconds: float, freq: int = 997) -> dict:
+    """perf record (cpu-clock) of the LAMMPS rank and the MPM process during the timed run."""
+    tag = f"profile_{case['name']}"
+    log = work / f"{tag}.log"
+    cmd = case_command(case, size, log)
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    wait_for_quiet(0.3, 30.0)
+    out = open(work / f"{tag}.out", "w")
+    proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=out, stderr=subprocess.STDOUT, text=True)
+    try:
+        t0 = time.time()
+        while True:   # the timed run has started when its thermo header is in the log
+            if proc.poll() is not None:
+                raise RuntimeError(f"the profiled run ended early (exit {proc.returncode})")
+            if log.exists() and len(re.findall(r"^\s*Step\s", log.read_text(), re.M)) >= 2:
+                break
+            if time.time() - t0 > RUN_TIMEOUT:
+                raise RuntimeError("the profiled run did not reach its timed run")
+            time.sleep(0.05)
+        procs = descendants(proc.pid)
+        targets = {name: pid for pid, name in procs.items() if name in ("lmp_hybrid", "mpm_solver")}
+        perfs = []
+        for name, pid in targets.items():
+            perfs.append(subprocess.Popen(["perf", "record", "-q", "-e", "cpu-clock", "-F", str(freq), "-p", str(pid),
+                                           "-o", str(work / f"{tag}.{name}.data"), "--", "sleep", str(seconds)],
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        for p in perfs:
+            p.wait()
+        proc.wait(timeout=RUN_TIMEOUT)
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+        out.close()
+    run = parse_log(log.read_text())
+    step_s = run["loop_time"] / run["steps"]
+    res = {"case": case["name"], "seconds": seconds, "step_s": step_s, "steps_in_window": seconds / step_s,
+           "sections": run["sections"], "processes": {}}
+    for name, groups in (("lmp_hybrid", LAMMPS_GROUPS), ("mpm_solver", MPM_GROUPS)):
+        data = work / f"{tag}.{name}.data"
+        if data.exists():
+            g = perf_groups(data, groups)
+            g["on_cpu_s"] = g["total"] / freq
+            g["off_cpu_s"] = max(0.0, seconds - g["on_cpu_s"])
+            res["processes"][name] = g
+    return res
+
+
+# ----------------------------------------------------------------------------- report
+
+def med(values):
+    values = [v for v in values if v is not None]
+    return statistics.median(values) if values else None
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="smaller bed (about 10,000 grains in LAMMPS) and fewer steps")
+    ap.add_argument("--reps", type=int, help="repetitions of the interleaved set (default 5, --quick 3)")
+    ap.add_argument("--quiet-wait", type=float, default=30.0,
+                    help="before each run wait at most this long (s) for other processes to use less than 0.3 "
+                         "cores (the machine is shared; default 30, 0 = do not wait)")
+    ap.add_argument("--every", type=int, nargs="+", default=[1, 10], help="exchange intervals (default 1 10)")
+    ap.add_argument("--np", type=int, nargs="+", default=[1], help="LAMMPS ranks (default 1; the MPM process is extra)")
+    ap.add_argument("--nsteps", type=int, help="timed steps per run (default 2000, --quick 500)")
+    ap.add_argument("--no-full-dem", action="store_true",
+                    help="skip the reference run of the whole bed as DEM (no continuum, no fix)")
+    ap.add_argument("--profile", action="store_true",
+                    help="afterwards, perf-record the LAMMPS rank and the MPM process of each coupled case once "
+                         "(where the time of the fix goes: waiting for the MPM process or its own DEM-side work)")
+    ap.add_argument("--keep", type=Path, help="keep the logs in this directory")
+    ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "coupling_overhead.md")
+    args = ap.parse_args()
+    for exe in (LMP, MPM):
+        if not exe.exists():
+            sys.exit(f"{exe} is not built; run tools/setup.sh first")
+    size = dict(SIZES["quick" if args.quick else "full"])
+    if args.reps is None:
+        args.reps = 3 if args.quick else 5
+    if args.nsteps:
+        size["nsteps"] = args.nsteps
+
+    cases = []
+    for np_ in args.np:
+        cases.append({"name": f"np{np_}_lammps", "np": np_, "couple": False, "trim": True, "every": 1})
+        for e in args.every:
+            cases.append({"name": f"np{np_}_coupled_every{e}", "np": np_, "couple": True, "trim": True, "every": e})
+        if not args.no_full_dem:
+            cases.append({"name": f"np{np_}_full_dem", "np": np_, "couple": False, "trim": False, "every": 1})
+
+    runs: list[dict] = []
+    tmp = tempfile.mkdtemp(prefix="coupling_overhead_")
+    work = Path(tmp)
+    try:
+        for rep in range(args.reps):
+            k = rep % len(cases)
+            for case in cases[k:] + cases[:k]:   # interleaved, the order rotating between repetitions
+                r = run_case(case, size, work, f"{case['name']}_rep{rep}", (0.3, args.quiet_wait))
+                r["rep"] = rep
+                runs.append(r)
+                print(f"rep {rep} {case['name']:24s} {1e3 * r['step_s']:8.3f} ms/step  "
+                      f"(Modify {1e3 * (r['sections'].get('Modify') or 0) / r['steps']:.3f} ms/step, "
+                      f"CPU use {r['cpu_use_percent']} %, others busy {r['busy_cores_before'] or 0:.2f} cores)",
+                      flush=True)
+        profiles = []
+        if args.profile:
+            if shutil.which("perf") is None:
+                print("coupling_overhead: perf not found; no profile", file=sys.stderr)
+            else:
+                for case in cases:
+                    if case["couple"] or case["trim"]:
+                        est = med([r["step_s"] for r in runs if r["case"] == case["name"]]) * size["nsteps"]
+                        profiles.append(profile_case(case, size, work, seconds=max(1.0, 0.6 * est)))
+    finally:
+        if args.keep:
+            args.keep.mkdir(parents=True, exist_ok=True)
+            for f in work.iterdir():
+                if f.suffix in (".log", ".out"):
+                    shutil.copy2(f, args.keep / f.name)
+        shutil.rmtree(work, ignore_errors=True)
+
+    # ---- summary per case
+    summary = {}
+    for case in cases:
+        rs = [r for r in runs if r["case"] == case["name"]]
+        th = rs[-1].get("thermo", {})
+        s = {"np": case["np"], "couple": case["couple"], "every": case["every"] if case["couple"] else None,
+             "atoms": rs[-1]["atoms"], "runs": len(rs),
+             "step_ms": 1e3 * med([r["step_s"] for r in rs]),
+             "step_ms_all": [1e3 * r["step_s"] for r in rs],
+             "pair_ms": 1e3 * med([(r["sections"].get("Pair") or 0) / r["steps"] for r in rs]),
+             "modify_ms": 1e3 * med([(r["sections"].get("Modify") or 0) / r["steps"] for r in rs]),
+             "modify_share": med([(r["sections"].get("Modify") or 0) / r["loop_time"] for r in rs]),
+             "cpu_use_percent": med([r["cpu_use_percent"] for r in rs])}
+        if case["couple"]:
+            s["coupled_grains"] = int(th.get("f_couple[2]", 0))
+            s["points"] = int(th.get("f_couple[3]", 0))
+            s["substeps_per_exchange"] = th.get("f_couple[6]")
+            s["coupled_fraction"] = s["coupled_grains"] / s["atoms"] if s["atoms"] else None
+            s["converted_grains"] = rs[-1].get("converted_grains")
+        summary[case["name"]] = s
+    for case in cases:
+        s = summary[case["name"]]
+        if not case["couple"]:
+            continue
+        base = summary[f"np{case['np']}_lammps"]
+        s["overhead"] = s["step_ms"] / base["step_ms"] - 1.0
+        # paired by repetition: the two runs of one repetition were close in time
+        pairs = [c["step_s"] / b["step_s"] - 1.0 for c in runs if c["case"] == case["name"]
+                 for b in runs if b["case"] == f"np{case['np']}_lammps" and b["rep"] == c["rep"]]
+        s["overhead_paired"] = pairs
+        s["overhead_fastest"] = min(s["step_ms_all"]) / min(base["step_ms_all"]) - 1.0
+        s["fix_ms_per_step"] = s["modify_ms"] - base["modify_ms"]
+        s["fix_ms_per_exchange"] = s["fix_ms_per_step"] * case["every"]
+        s["pair_change"] = s["pair_ms"] / base["pair_ms"] - 1.0
+
+    # ---- build state (others may be rebuilding build/ from an edited tree)
+    def git(*a):
+        return subprocess.run(["git", *a], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                              text=True).stdout.rstrip()
+    head = git("rev-parse", "--short", "HEAD")
+    dirty = [ln[3:] for ln in git("status", "--porcelain", "--", "coupler", "lammps_fix_hybrid",
+                                  "mpm_solver").splitlines()]
+    built = {exe.name: datetime.fromtimestamp(exe.stat().st_mtime, timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+             for exe in (LMP, MPM)}
+    build_note = (f"Binaries of build/ ({', '.join(f'{k} built {v}' for k, v in built.items())}) from commit {head}"
+                  + (f" with uncommitted changes to {', '.join(dirty)}" if dirty else "") + ".")
+
+    # ---- markdown
+    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    argv = " ".join(shlex.quote(a) for a in sys.argv[1:])
+    command = f"bench/coupling_overhead.py{(' ' + argv) if argv else ''}"
+    any_c = next(s for s in summary.values() if s["couple"])
+    lam = summary[f"np{args.np[0]}_lammps"]
+    loads = [r["loadavg_1min_before"] for r in runs]
+    steal = [r["steal_percent"] for r in runs]
+    busy = [r["busy_cores_before"] or 0.0 for r in runs]
+    lines = [
+        f"# Coupling overhead of fix hybrid/mpm ({stamp}, {os.cpu_count()} cores)", "",
+        f"Measured: the LAMMPS loop time per step (the timed `run` of `input_decks/hybrid/overhead_2d.lmp`, "
+        f"{size['nsteps']} steps after a {size['warmup']}-step warm-up) of a 2D bed of 2 mm disks under gravity, "
+        f"{lam['atoms']} grains in LAMMPS, coupled by `fix hybrid/mpm` to one `mpm_solver --coupled` process "
+        f"(tools/hybrid_launch.py; {any_c['coupled_grains']} coupled grains = "
+        f"{100 * any_c['coupled_fraction']:.1f} % of the grains, {any_c['points']} material points made from "
+        f"{any_c['converted_grains']} grains of the continuum), against the same grains without the fix "
+        f"(lmp_hybrid alone through tools/mpirun.sh, the converted grains deleted and the floor moved under the "
+        f"lowest remaining row). LAMMPS on {', '.join(map(str, args.np))} rank(s), one thread; all cases "
+        f"interleaved, {args.reps} repetitions, medians. Overhead = coupled / uncoupled - 1, target <= "
+        f"{100 * TARGET:.0f} % with hybrid grains <= 20 %. Made by `{command}`. The machine is shared: each "
+        f"run waited (up to {args.quiet_wait:.0f} s) for other processes to use less than 0.3 cores; they used "
+        f"{min(busy):.2f}-{max(busy):.2f} cores just before the runs (1-minute load average "
+        f"{min(loads):.2f}-{max(loads):.2f}), steal {max(steal):.1f} % at most. {build_note}", "",
+        "| case | grains in LAMMPS | coupled grains | MPM points | MPM substeps per exchange | ms per step, median "
+        "(runs) | overhead, median (paired by repetition) | Pair ms/step | Modify ms/step (share of the step) | "
+        "fix cost per exchange | LAMMPS CPU use |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    verdicts = []
+    for case in cases:
+        s = summary[case["name"]]
+        base = summary[f"np{case['np']}_lammps"]
+        ranks = f", {case['np']} LAMMPS rank(s)" if len(args.np) > 1 else ""
+        if case["couple"]:
+            label = f"coupled, every {case['every']}{ranks}"
+            cg = f"{s['coupled_grains']} ({100 * s['coupled_fraction']:.1f} %)"
+            pts, sub = str(s["points"]), f"{s['substeps_per_exchange']:.0f}"
+            paired = ", ".join(f"{100 * p:+.0f}" for p in s["overhead_paired"])
+            ovh = f"**{100 * s['overhead']:+.1f} %** ({paired} %; fastest runs {100 * s['overhead_fastest']:+.1f} %)"
+            fix = f"{s['fix_ms_per_exchange']:.3f} ms"
+            factor = s["overhead"] / TARGET
+            verdict = "met" if s["overhead"] <= TARGET else f"{factor:.1f}x the target"
+            verdicts.append(f"every {case['every']}{ranks}: {100 * s['overhead']:+.1f} % ({verdict})")
+        else:
+            label = (f"LAMMPS alone, same grains{ranks}" if case["trim"]
+                     else f"LAMMPS alone, whole bed as DEM (reference){ranks}")
+            cg, pts, sub, ovh, fix = "-", "-", "-", "-", "-"
+            if not case["trim"]:
+                ovh = f"({100 * (s['step_ms'] / base['step_ms'] - 1):+.1f} % vs. the same grains)"
+        runs_ms = ", ".join(f"{v:.2f}" for v in s["step_ms_all"])
+        lines.append(f"| {label} | {s['atoms']} | {cg} | {pts} | {sub} | {s['step_ms']:.3f} ({runs_ms}) | {ovh} | "
+                     f"{s['pair_ms']:.3f} | {s['modify_ms']:.3f} ({100 * s['modify_share']:.0f} %) | {fix} | "
+                     f"{s['cpu_use_percent']:.0f} % |")
+    lines += ["", f"Target <= {100 * TARGET:.0f} %: " + "; ".join(verdicts) + "."]
+    lines += ["", "Modify is the LAMMPS timer section that holds the fixes (here nve/sphere, gravity, wall/gran, "
+              "enforce2d and, coupled, hybrid/mpm, whose exchange runs in end_of_step and includes the wait for "
+              "the MPM process); the fix cost per exchange is the coupled minus the uncoupled Modify time per step, "
+              "times the exchange interval. 'LAMMPS CPU use' is LAMMPS's own figure (CPU time over wall time): "
+              "below 100 % the rank slept (waiting) or was descheduled. The whole-bed row is the DEM run the "
+              "continuum replaces; its 'overhead' column is its cost relative to the uncoupled row."]
+
+    if profiles:
+        lines += ["", "## Where the time of a coupled step goes (perf, cpu-clock samples, one extra run per case)", "",
+                  "Per LAMMPS step, in ms; off-CPU is wall time minus sampled CPU time (sleeping in the fix's "
+                  "poll back-off, or descheduled).", "",
+                  "| case | process | " + " | ".join(g for g, _ in LAMMPS_GROUPS) + " | other | on-CPU | off-CPU |",
+                  "| --- | --- | " + " | ".join("---" for _ in LAMMPS_GROUPS) + " | --- | --- | --- |"]
+        for p in profiles:
+            steps = p["steps_in_window"]
+            g = p["processes"].get("lmp_hybrid")
+            if g:
+                vals = [1e3 * g["groups"][name] / 997 / steps for name, _ in LAMMPS_GROUPS]
+                lines.append(f"| {p['case']} | LAMMPS | " + " | ".join(f"{v:.3f}" for v in vals) +
+                             f" | {1e3 * g['groups']['other'] / 997 / steps:.3f} | {1e3 * g['on_cpu_s'] / steps:.3f} | "
+                             f"{1e3 * g['off_cpu_s'] / steps:.3f} |")
+        lines += ["", "| case | process | " + " | ".join(g for g, _ in MPM_GROUPS) + " | other | on-CPU | off-CPU |",
+                  "| --- | --- | " + " | ".join("---" for _ in MPM_GROUPS) + " | --- | --- | --- |"]
+        for p in profiles:
+            steps = p["steps_in_window"]
+            g = p["processes"].get("mpm_solver")
+            if g:
+                vals = [1e3 * g["groups"][name] / 997 / steps for name, _ in MPM_GROUPS]
+                lines.append(f"| {p['case']} | mpm_solver | " + " | ".join(f"{v:.3f}" for v in vals) +
+                             f" | {1e3 * g['groups']['other'] / 997 / steps:.3f} | {1e3 * g['on_cpu_s'] / steps:.3f} | "
+                             f"{1e3 * g['off_cpu_s'] / steps:.3f} |")
+        own = LAMMPS_GROUPS[1][0]
+        for p in profiles:
+            g = p["processes"].get("lmp_hybrid")
+            every = next((c["every"] for c in cases if c["name"] == p["case"]), 1)
+            if g and g["groups"][own] and next(c for c in cases if c["name"] == p["case"])["couple"]:
+                steps = p["steps_in_window"]
+                items = ", ".join(f"{name} {1e3 * n / 997 / steps * every:.3f}"
+                                  for name, n in g["top_by_group"][own])
+                lines += ["", f"{p['case']}: largest parts of the fix's own DEM-side work, ms per exchange: {items}."]
+    lines.append("")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text("\n".join(lines))
+    args.out.with_suffix(".json").write_text(json.dumps(
+        {"command": command, "date": stamp, "cores": os.cpu_count(), "size": size, "reps": args.reps,
+         "target": TARGET, "build": {"commit": head, "uncommitted": dirty, "built": built}, "summary": summary, "runs": runs, "profiles": profiles}, indent=1))
+    print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
