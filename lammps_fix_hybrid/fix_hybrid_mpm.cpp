@@ -398,10 +398,32 @@ void FixHybridMPM::compute_zones()
   }
   if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
   if (comm->me == 0) {
-    const auto n = coupler::zone_counts(zones);
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: grid of {} cells: {} continuum, {} hybrid, {} discrete\n",
-                                    zones.size(), n[coupler::kContinuum], n[coupler::kHybrid],
+    // cells of the box only (the padding cells around it are continuum by convention)
+    bigint n[3] = {0, 0, 0};
+    double centre[3] = {0, 0, 0};
+    for (std::size_t c = 0; c < zones.size(); ++c) {
+      cell_centre(c, centre);
+      bool in_box = true;
+      for (int d = 0; d < domain->dimension; d++)
+        in_box = in_box && centre[d] >= domain->boxlo[d] && centre[d] <= domain->boxhi[d];
+      if (in_box) n[zones[c]]++;
+    }
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} grid cells in the box: {} continuum, {} hybrid, {} discrete\n",
+                                    n[0] + n[1] + n[2], n[coupler::kContinuum], n[coupler::kHybrid],
                                     n[coupler::kDiscrete]));
+  }
+}
+
+void FixHybridMPM::cell_centre(std::size_t c, double *centre) const
+{
+  if (domain->dimension == 2) {
+    const auto grid = box_grid<2>(domain, cell);
+    const Vec<2> x = coupler::cell_center<2>(grid, coupler::cell_coords<2>(grid, c));
+    for (int d = 0; d < 2; d++) centre[d] = x[d];
+  } else {
+    const auto grid = box_grid<3>(domain, cell);
+    const Vec<3> x = coupler::cell_center<3>(grid, coupler::cell_coords<3>(grid, c));
+    for (int d = 0; d < 3; d++) centre[d] = x[d];
   }
 }
 

@@ -107,6 +107,7 @@ class FixHybridMPM : public Fix {
   void check_all(int status, const std::string &what);
   void compute_zones();
   int zone_of(const double *x) const;
+  void cell_centre(std::size_t c, double *centre) const;
   void grain_defaults();
   void fill_thermo_vector();
   void fail(const char *file, int line, int status, const char *what);

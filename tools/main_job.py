@@ -3,9 +3,10 @@
 ratio 2), with its comparison output.
 
 The collapse runs as pure LAMMPS DEM (the reference, input_decks/column_collapse/
-dem_2d.lmp) and as pure MPM with each constitutive model; each is compared with
-the DEM (final surface) and with the published runout laws (DESIGN.md section 6).
-When the coupled DEM-MPM fix lands, the hybrid joins the table.
+dem_2d.lmp), as the hybrid (the same deck with `hybrid 1`: lmp_hybrid + mpm_solver,
+fix hybrid/mpm, from the same settled column) and as pure MPM with each constitutive
+model; each is compared with the DEM (final surface, wall time) and with the published
+runout laws (DESIGN.md section 6).
 
 Writes <out>/report.md (table) and <out>/profiles.png (final surface profiles).
 """
@@ -25,7 +26,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from column_collapse import (ColumnCollapse, normalised_runout, points_surface,  # noqa: E402
                              published_runout_range, surface_error)
 from dem_collapse import run as run_dem  # noqa: E402
-from mpm_results import load_run, surface_profile  # noqa: E402
+from column_collapse import combine_surfaces  # noqa: E402
+from mpm_results import load_run  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 SOLVER = REPO / "build" / "mpm_solver" / "mpm_solver"
@@ -61,45 +63,56 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=REPO / "runs" / "main", help="output directory (default runs/main)")
     ap.add_argument("--aspect", type=float, default=2.0, help="column aspect ratio H0/L0 (default 2)")
     ap.add_argument("--cell", type=float, default=0.005, help="MPM cell size in m (default 0.005)")
-    ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
-    ap.add_argument("--no-dem", action="store_true", help="skip the pure LAMMPS DEM reference")
+    ap.add_argument("--threads", type=int, default=os.cpu_count() or 1,
+                    help="LAMMPS ranks (DEM and hybrid alike) and MPM threads")
     args = ap.parse_args()
     if not SOLVER.exists():
         sys.exit(f"main_job: {SOLVER} is not built; run tools/setup.sh")
     args.out.mkdir(parents=True, exist_ok=True)
+    width, d = 0.1, 0.002
+    height0 = args.aspect * width
 
-    dem = None
-    if not args.no_dem:
-        print("main_job: pure LAMMPS DEM reference (the settled column is built once and cached)", flush=True)
-        dem = run_dem(aspect=args.aspect, width=0.1, np_=args.threads, out=args.out / "dem")
-        print(dem.summary(), flush=True)
+    print("main_job: pure LAMMPS DEM reference (the settled column is built once and cached)", flush=True)
+    dem = run_dem(aspect=args.aspect, width=width, np_=args.threads, out=args.out / "dem")
+    print(dem.summary(), flush=True)
+    reference = np.array(dem.profile).T
+    print("main_job: hybrid (lmp_hybrid + mpm_solver) from the same settled column", flush=True)
+    hybrid = run_dem(aspect=args.aspect, width=width, np_=args.threads, out=args.out / "hybrid", hybrid_vars={})
+    print(hybrid.summary(), flush=True)
+    points = load_run(args.out / "hybrid" / "frames").frame(-1)
+    hybrid_surface = combine_surfaces(np.array(hybrid.profile).T,
+                                      points_surface(points["position"], width / 20, 2 * d))
     results = [run_model(m, args.aspect, args.cell, args.out, args.threads) for m in ("drucker_prager", "mu_i")]
+    for r in results:
+        r["surface"] = points_surface(r["positions"], args.cell / 2, 2 * d)  # 2 x 2 points per cell
     lo, hi = published_runout_range(args.aspect)
-    height0 = args.aspect * 0.1
 
     def against_law(runout: float) -> str:
         return "yes" if lo <= runout <= hi else f"no ({(runout - np.clip(runout, lo, hi)) / hi:+.0%})"
 
-    lines = [f"# Column collapse, aspect ratio {args.aspect:g}, L0 = 0.1 m", "",
+    lines = [f"# Column collapse, aspect ratio {args.aspect:g}, L0 = {width:g} m", "",
              f"Published runout (Lf - L0)/L0 for a = {args.aspect:g}: {lo:.2f} to {hi:.2f} "
              "(Lube et al. 2005; Lajeunesse et al. 2005). Surface error: RMS difference of the final "
              "surface height from the DEM deposit's, from the wall to the farther front, as a fraction of the "
-             "column height H0.", "",
-             "| run | (Lf - L0)/L0 | within published range | surface error vs DEM | final height / L0 | size | wall s |",
-             "| --- | --- | --- | --- | --- | --- | --- |"]
-    if dem is not None:
-        lines.append(f"| LAMMPS DEM (reference) | {dem.runout:.2f} | {against_law(dem.runout)} | - | "
-                     f"{dem.final_height / 0.1:.2f} | {dem.grains} grains | {dem.wall_time:.1f}"
-                     f"{' (incl. column preparation)' if dem.prepared else ''} |")
+             "column height H0. Speedup: DEM wall time over the run's, measured side by side in this job "
+             f"({args.threads} LAMMPS rank(s); the hybrid adds one MPM process). The hybrid turns the block "
+             "x < L0/2, y < 0.7 L0 against the back wall (inside the collapse's static wedge) into continuum; "
+             "its zones are fixed.", "",
+             "| run | (Lf - L0)/L0 | within published range | surface error vs DEM | final height / L0 | size | wall s | speedup vs DEM |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |",
+             f"| LAMMPS DEM (reference) | {dem.runout:.2f} | {against_law(dem.runout)} | - | "
+             f"{dem.final_height / width:.2f} | {dem.grains} grains | {dem.wall_time:.1f}"
+             f"{' (incl. column preparation)' if dem.prepared else ''} | 1 |"]
+    error = surface_error(hybrid_surface, reference, height0)
+    lines.append(f"| hybrid (LAMMPS + MPM) | {hybrid.runout:.2f} | {against_law(hybrid.runout)} | {error:.1%} | "
+                 f"{max(hybrid.final_height, float(points['position'][:, 1].max())) / width:.2f} | "
+                 f"{hybrid.grains} grains + {len(points['position'])} points | {hybrid.wall_time:.1f} | "
+                 f"{dem.wall_time / hybrid.wall_time:.2f} |")
     for r in results:
-        error = "-"
-        if dem is not None:
-            spacing = args.cell / 2  # 2 x 2 points per cell (ColumnCollapse)
-            mpm_surface = points_surface(r["positions"], spacing, 2 * 0.002)
-            r["surface_error"] = surface_error(mpm_surface, np.array(dem.profile).T, height0)
-            error = f"{r['surface_error']:.1%}"
-        lines.append(f"| MPM {r['model']} | {r['runout']:.2f} | {against_law(r['runout'])} | {error} | "
-                     f"{r['height']:.2f} | {r['points']} points, {r['steps']} steps | {r['wall']:.1f} |")
+        r["surface_error"] = surface_error(r["surface"], reference, height0)
+        lines.append(f"| MPM {r['model']} | {r['runout']:.2f} | {against_law(r['runout'])} | "
+                     f"{r['surface_error']:.1%} | {r['height']:.2f} | {r['points']} points, {r['steps']} steps | "
+                     f"{r['wall']:.1f} | {dem.wall_time / r['wall']:.2f} |")
     report = args.out / "report.md"
     report.write_text("\n".join(lines) + "\n")
 
@@ -108,13 +121,10 @@ def main() -> int:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 3.2))
-    if dem is not None:
-        dem_x, dem_h = np.array(dem.profile).T
-        ax.plot(dem_x / 0.1, dem_h / 0.1, "k", lw=2, label="LAMMPS DEM")
+    ax.plot(reference[0] / width, reference[1] / width, "k", lw=2, label="LAMMPS DEM")
+    ax.plot(hybrid_surface[0] / width, hybrid_surface[1] / width, "C3", lw=1.5, label="hybrid")
     for r in results:
-        heights, edges = surface_profile(r["positions"], bins=80, return_edges=True)
-        centres = 0.5 * (edges[:-1] + edges[1:])
-        ax.plot(centres / r["width"], heights / r["width"], label=f"MPM {r['model']}")
+        ax.plot(r["surface"][0] / width, r["surface"][1] / width, lw=1, label=f"MPM {r['model']}")
     ax.axvspan(1 + lo, 1 + hi, color="grey", alpha=0.2, label="published runout")
     ax.set_xlabel("x / L0")
     ax.set_ylabel("surface height / L0")
