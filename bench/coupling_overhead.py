@@ -18,6 +18,7 @@ Usage: bench/coupling_overhead.py [--quick] [--reps 3] [--every 1 10] [--np 1] [
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import re
@@ -35,6 +36,7 @@ REPO = Path(__file__).resolve().parent.parent
 DECK = REPO / "input_decks" / "hybrid" / "overhead_2d.lmp"
 LMP = REPO / "build" / "lammps_fix_hybrid" / "lmp_hybrid"
 MPM = REPO / "build" / "mpm_solver" / "mpm_solver"
+BUILD = REPO / "build"
 MPIRUN = REPO / "tools" / "mpirun.sh"
 LAUNCH = REPO / "tools" / "hybrid_launch.py"
 TARGET = 0.05          # overhead of a LAMMPS step
@@ -48,13 +50,39 @@ SIZES = {  # bed width (m), timed steps, warm-up steps
 
 # ----------------------------------------------------------------------------- one run
 
+def snapshot_binaries(work: Path, settle: float = 20.0, max_wait: float = 300.0) -> dict:
+    """Copies lmp_hybrid and mpm_solver into work/ so that every run of the benchmark uses the same binaries
+    (build/ may be rebuilt meanwhile); waits until neither was written in the last `settle` seconds."""
+    global LMP, MPM, BUILD
+    t0 = time.time()
+    while time.time() - t0 < max_wait:
+        if all(time.time() - exe.stat().st_mtime > settle for exe in (LMP, MPM)):
+            break
+        time.sleep(5)
+    build = work / "build"
+    (build / "lammps_fix_hybrid").mkdir(parents=True)
+    (build / "mpm_solver").mkdir()
+    programs = json.loads((REPO / "build" / "lammps_fix_hybrid" / "hybrid_programs.json").read_text())
+    info = {}
+    for exe, sub in ((LMP, "lammps_fix_hybrid"), (MPM, "mpm_solver")):
+        copy = build / sub / exe.name
+        shutil.copy2(exe, copy)
+        info[exe.name] = {"built": datetime.fromtimestamp(exe.stat().st_mtime, timezone.utc)
+                          .strftime("%Y-%m-%d %H:%M:%S UTC"),
+                          "sha256": hashlib.sha256(copy.read_bytes()).hexdigest()[:16]}
+        programs[exe.name] = str(copy)
+    (build / "lammps_fix_hybrid" / "hybrid_programs.json").write_text(json.dumps(programs, indent=1))
+    LMP, MPM, BUILD = build / "lammps_fix_hybrid" / "lmp_hybrid", build / "mpm_solver" / "mpm_solver", build
+    return info
+
+
 def case_command(case: dict, size: dict, log: Path) -> list[str]:
     lammps_vars = ["-var", "couple", "1" if case["couple"] else "0", "-var", "trim", "1" if case["trim"] else "0",
                    "-var", "every", str(case.get("every", 1)), "-var", "width", str(size["width"]),
                    "-var", "nsteps", str(size["nsteps"]), "-var", "warmup", str(size["warmup"]),
                    "-log", str(log)]
     if case["couple"]:
-        return [sys.executable, str(LAUNCH), "-np", str(case["np"]), str(DECK), *lammps_vars]
+        return [sys.executable, str(LAUNCH), "--build", str(BUILD), "-np", str(case["np"]), str(DECK), *lammps_vars]
     return [str(MPIRUN), "-np", str(case["np"]), str(LMP), "-in", str(DECK), *lammps_vars]
 
 
@@ -93,6 +121,9 @@ def parse_log(text: str) -> dict:
         rows = [r for r in rows if len(r) == len(names) and re.fullmatch(r"-?\d+", r[0])]
         if rows:
             out["thermo"] = {n: float(v) for n, v in zip(names, rows[-1])}
+            if "c_contacts" in names:   # contacts at the thermo steps of the timed run (start, ..., end)
+                k = names.index("c_contacts")
+                out["contacts"] = [float(r[k]) / 2 for r in rows]
     m = re.search(r"fix hybrid/mpm: step \d+: (\d+) grains became (\d+) material points, (\d+) grains are hybrid", text)
     if m:
         out["converted_grains"], out["points"], out["hybrid_grains"] = (int(g) for g in m.groups())
@@ -232,8 +263,18 @@ def short_symbol(sym: str) -> str:
     return head
 
 
+def schedstat(tid: int) -> tuple[float, float]:
+    """(seconds on a CPU, seconds runnable but waiting for a CPU) of one thread."""
+    try:
+        on, wait, _ = Path(f"/proc/{tid}/schedstat").read_text().split()
+        return float(on) * 1e-9, float(wait) * 1e-9
+    except (OSError, ValueError):
+        return 0.0, 0.0
+
+
 def profile_case(case: dict, size: dict, work: Path, seconds: float, freq: int = 997) -> dict:
-    """perf record (cpu-clock) of the LAMMPS rank and the MPM process during the timed run."""
+    """perf record (cpu-clock) of the main threads of the LAMMPS rank and of the MPM process during the timed
+    run, with their scheduler statistics (time on a CPU, time waiting for one) over the same window."""
     tag = f"profile_{case['name']}"
     log = work / f"{tag}.log"
     cmd = case_command(case, size, log)
@@ -251,15 +292,20 @@ def profile_case(case: dict, size: dict, work: Path, seconds: float, freq: int =
             if time.time() - t0 > RUN_TIMEOUT:
                 raise RuntimeError("the profiled run did not reach its timed run")
             time.sleep(0.05)
-        procs = descendants(proc.pid)
-        targets = {name: pid for pid, name in procs.items() if name in ("lmp_hybrid", "mpm_solver")}
-        perfs = []
-        for name, pid in targets.items():
-            perfs.append(subprocess.Popen(["perf", "record", "-q", "-e", "cpu-clock", "-F", str(freq), "-p", str(pid),
-                                           "-o", str(work / f"{tag}.{name}.data"), "--", "sleep", str(seconds)],
-                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        targets = {name: pid for pid, name in descendants(proc.pid).items() if name in ("lmp_hybrid", "mpm_solver")}
+        before = {name: schedstat(pid) for name, pid in targets.items()}
+        w0 = time.perf_counter()
+        perfs = [subprocess.Popen(["perf", "record", "-q", "-e", "cpu-clock", "-F", str(freq), "-t", str(pid),
+                                   "-o", str(work / f"{tag}.{name}.data"), "--", "sleep", str(seconds)],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                 for name, pid in targets.items()]
         for p in perfs:
             p.wait()
+        window = time.perf_counter() - w0
+        after = {name: schedstat(pid) for name, pid in targets.items()}
+        if any(a[0] < b[0] for a, b in zip(after.values(), before.values())) or not targets:
+            raise RuntimeError(f"the profiled processes of {case['name']} ended inside the perf window "
+                               f"({targets}, {before}, {after}, {time.perf_counter() - w0:.1f} s)")
         proc.wait(timeout=RUN_TIMEOUT)
     finally:
         if proc.poll() is None:
@@ -267,19 +313,33 @@ def profile_case(case: dict, size: dict, work: Path, seconds: float, freq: int =
         out.close()
     run = parse_log(log.read_text())
     step_s = run["loop_time"] / run["steps"]
-    res = {"case": case["name"], "seconds": seconds, "step_s": step_s, "steps_in_window": seconds / step_s,
+    res = {"case": case["name"], "window_s": window, "step_s": step_s, "steps_in_window": window / step_s,
            "sections": run["sections"], "processes": {}}
     for name, groups in (("lmp_hybrid", LAMMPS_GROUPS), ("mpm_solver", MPM_GROUPS)):
         data = work / f"{tag}.{name}.data"
-        if data.exists():
+        if name in targets and data.exists():
             g = perf_groups(data, groups)
-            g["on_cpu_s"] = g["total"] / freq
-            g["off_cpu_s"] = max(0.0, seconds - g["on_cpu_s"])
+            on = after[name][0] - before[name][0]
+            runq = after[name][1] - before[name][1]
+            g.update(on_cpu_s=on, runqueue_s=runq, sleep_s=max(0.0, window - on - runq))
+            # per LAMMPS step (ms): the samples split the measured CPU time
+            scale = 1e3 * on / max(g["total"], 1) / res["steps_in_window"]
+            g["ms_per_step"] = {k: v * scale for k, v in g["groups"].items()}
+            g["ms_per_step"].update(on_cpu=1e3 * on / res["steps_in_window"],
+                                    runqueue=1e3 * runq / res["steps_in_window"],
+                                    sleep=1e3 * g["sleep_s"] / res["steps_in_window"])
+            g["top_ms_per_step"] = {k: [(n, v * scale) for n, v in items] for k, items in g["top_by_group"].items()}
             res["processes"][name] = g
     return res
 
 
 # ----------------------------------------------------------------------------- report
+
+def git(*a: str) -> str:
+    """Read-only git queries (revision, status) for the report."""
+    return subprocess.run(["git", *a], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                          text=True).stdout.rstrip()
+
 
 def med(values):
     values = [v for v in values if v is not None]
@@ -325,6 +385,10 @@ def main() -> int:
     tmp = tempfile.mkdtemp(prefix="coupling_overhead_")
     work = Path(tmp)
     try:
+        head = git("rev-parse", "--short", "HEAD")
+        dirty = [ln[3:] for ln in git("status", "--porcelain", "--", "coupler", "lammps_fix_hybrid",
+                                      "mpm_solver").splitlines()]
+        binaries = snapshot_binaries(work)
         for rep in range(args.reps):
             k = rep % len(cases)
             for case in cases[k:] + cases[:k]:   # interleaved, the order rotating between repetitions
@@ -340,10 +404,12 @@ def main() -> int:
             if shutil.which("perf") is None:
                 print("coupling_overhead: perf not found; no profile", file=sys.stderr)
             else:
+                window = 3.0   # s of perf record, at the start of a timed run expected to last 3 times longer
                 for case in cases:
                     if case["couple"] or case["trim"]:
-                        est = med([r["step_s"] for r in runs if r["case"] == case["name"]]) * size["nsteps"]
-                        profiles.append(profile_case(case, size, work, seconds=max(1.0, 0.6 * est)))
+                        step = min(r["step_s"] for r in runs if r["case"] == case["name"])
+                        psize = dict(size, nsteps=max(size["nsteps"], int(3.0 * window / step)))
+                        profiles.append(profile_case(case, psize, work, seconds=window))
     finally:
         if args.keep:
             args.keep.mkdir(parents=True, exist_ok=True)
@@ -364,7 +430,8 @@ def main() -> int:
              "pair_ms": 1e3 * med([(r["sections"].get("Pair") or 0) / r["steps"] for r in rs]),
              "modify_ms": 1e3 * med([(r["sections"].get("Modify") or 0) / r["steps"] for r in rs]),
              "modify_share": med([(r["sections"].get("Modify") or 0) / r["loop_time"] for r in rs]),
-             "cpu_use_percent": med([r["cpu_use_percent"] for r in rs])}
+             "cpu_use_percent": med([r["cpu_use_percent"] for r in rs]),
+             "contacts_mean": med([statistics.mean(r["contacts"]) for r in rs if r.get("contacts")])}
         if case["couple"]:
             s["coupled_grains"] = int(th.get("f_couple[2]", 0))
             s["points"] = int(th.get("f_couple[3]", 0))
@@ -387,17 +454,11 @@ def main() -> int:
         s["fix_ms_per_exchange"] = s["fix_ms_per_step"] * case["every"]
         s["pair_change"] = s["pair_ms"] / base["pair_ms"] - 1.0
 
-    # ---- build state (others may be rebuilding build/ from an edited tree)
-    def git(*a):
-        return subprocess.run(["git", *a], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                              text=True).stdout.rstrip()
-    head = git("rev-parse", "--short", "HEAD")
-    dirty = [ln[3:] for ln in git("status", "--porcelain", "--", "coupler", "lammps_fix_hybrid",
-                                  "mpm_solver").splitlines()]
-    built = {exe.name: datetime.fromtimestamp(exe.stat().st_mtime, timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-             for exe in (LMP, MPM)}
-    build_note = (f"Binaries of build/ ({', '.join(f'{k} built {v}' for k, v in built.items())}) from commit {head}"
-                  + (f" with uncommitted changes to {', '.join(dirty)}" if dirty else "") + ".")
+    # ---- build state (others may be rebuilding build/ from an edited tree; the runs used copies)
+    build_note = ("All runs used copies of build/'s " +
+                  ", ".join(f"{k} (built {v['built']})" for k, v in binaries.items()) +
+                  f"; the tree was at commit {head}" +
+                  (f" with uncommitted changes to {', '.join(dirty)}" if dirty else "") + ".")
 
     # ---- markdown
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -424,9 +485,9 @@ def main() -> int:
         f"{min(busy):.2f}-{max(busy):.2f} cores just before the runs (1-minute load average "
         f"{min(loads):.2f}-{max(loads):.2f}), steal {max(steal):.1f} % at most. {build_note}", "",
         "| case | grains in LAMMPS | coupled grains | MPM points | MPM substeps per exchange | ms per step, median "
-        "(runs) | overhead, median (paired by repetition) | Pair ms/step | Modify ms/step (share of the step) | "
-        "fix cost per exchange | LAMMPS CPU use |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+        "(runs) | overhead, median (paired by repetition) | Pair ms/step | contacts | Modify ms/step (share of the "
+        "step) | fix cost per exchange | LAMMPS CPU use |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     verdicts = []
     for case in cases:
         s = summary[case["name"]]
@@ -450,55 +511,64 @@ def main() -> int:
                 ovh = f"({100 * (s['step_ms'] / base['step_ms'] - 1):+.1f} % vs. the same grains)"
         runs_ms = ", ".join(f"{v:.2f}" for v in s["step_ms_all"])
         lines.append(f"| {label} | {s['atoms']} | {cg} | {pts} | {sub} | {s['step_ms']:.3f} ({runs_ms}) | {ovh} | "
-                     f"{s['pair_ms']:.3f} | {s['modify_ms']:.3f} ({100 * s['modify_share']:.0f} %) | {fix} | "
+                     f"{s['pair_ms']:.3f} | {s['contacts_mean'] or 0:.0f} | "
+                     f"{s['modify_ms']:.3f} ({100 * s['modify_share']:.0f} %) | {fix} | "
                      f"{s['cpu_use_percent']:.0f} % |")
     lines += ["", f"Target <= {100 * TARGET:.0f} %: " + "; ".join(verdicts) + "."]
     lines += ["", "Modify is the LAMMPS timer section that holds the fixes (here nve/sphere, gravity, wall/gran, "
               "enforce2d and, coupled, hybrid/mpm, whose exchange runs in end_of_step and includes the wait for "
               "the MPM process); the fix cost per exchange is the coupled minus the uncoupled Modify time per step, "
               "times the exchange interval. 'LAMMPS CPU use' is LAMMPS's own figure (CPU time over wall time): "
-              "below 100 % the rank slept (waiting) or was descheduled. The whole-bed row is the DEM run the "
+              "below 100 % the rank slept (waiting) or was descheduled. 'contacts' are the touching grain pairs "
+              "(mean over the thermo steps of the timed run, median over the runs): the pair style's cost follows "
+              "them, and they differ a little between the cases (the coupled grains move with the continuum). "
+              "The whole-bed row is the DEM run the "
               "continuum replaces; its 'overhead' column is its cost relative to the uncoupled row."]
 
     if profiles:
-        lines += ["", "## Where the time of a coupled step goes (perf, cpu-clock samples, one extra run per case)", "",
-                  "Per LAMMPS step, in ms; off-CPU is wall time minus sampled CPU time (sleeping in the fix's "
-                  "poll back-off, or descheduled).", "",
-                  "| case | process | " + " | ".join(g for g, _ in LAMMPS_GROUPS) + " | other | on-CPU | off-CPU |",
-                  "| --- | --- | " + " | ".join("---" for _ in LAMMPS_GROUPS) + " | --- | --- | --- |"]
+        L, M = [g for g, _ in LAMMPS_GROUPS], [g for g, _ in MPM_GROUPS]
+        lines += ["", "## Where the time goes (perf, one more run per case)", "",
+                  "ms per LAMMPS step, from `perf record -e cpu-clock` of the main threads of the LAMMPS rank and "
+                  "the MPM process during the timed run, scaled to their CPU time in /proc/PID/schedstat; 'sleeping' "
+                  "is the rest of the wall time less the time waiting for a CPU (descheduled, e.g. by other users' "
+                  "processes). The profiled runs are slower than the timed ones (perf itself).", "",
+                  "| case | LAMMPS ms/step | pair | other LAMMPS work | fix: own DEM-side work | fix: polling the MPM "
+                  "process | libc | LAMMPS sleeping | LAMMPS descheduled | MPM: step and agreement | MPM: polling | "
+                  "MPM sleeping |",
+                  "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
         for p in profiles:
-            steps = p["steps_in_window"]
-            g = p["processes"].get("lmp_hybrid")
-            if g:
-                vals = [1e3 * g["groups"][name] / 997 / steps for name, _ in LAMMPS_GROUPS]
-                lines.append(f"| {p['case']} | LAMMPS | " + " | ".join(f"{v:.3f}" for v in vals) +
-                             f" | {1e3 * g['groups']['other'] / 997 / steps:.3f} | {1e3 * g['on_cpu_s'] / steps:.3f} | "
-                             f"{1e3 * g['off_cpu_s'] / steps:.3f} |")
-        lines += ["", "| case | process | " + " | ".join(g for g, _ in MPM_GROUPS) + " | other | on-CPU | off-CPU |",
-                  "| --- | --- | " + " | ".join("---" for _ in MPM_GROUPS) + " | --- | --- | --- |"]
+            lg = p["processes"].get("lmp_hybrid", {}).get("ms_per_step", {})
+            mg = p["processes"].get("mpm_solver", {}).get("ms_per_step", {})
+            f = lambda d, k: f"{d[k]:.3f}" if k in d else "-"
+            lines.append(f"| {p['case']} | {1e3 * p['step_s']:.3f} | {f(lg, L[2])} | {f(lg, L[3])} | {f(lg, L[1])} | "
+                         f"{f(lg, L[0])} | {f(lg, L[4])} | {f(lg, 'sleep')} | {f(lg, 'runqueue')} | {f(mg, M[1])} | "
+                         f"{f(mg, M[0])} | {f(mg, 'sleep')} |")
+        ref = next((p for p in profiles if not next(c for c in cases if c["name"] == p["case"])["couple"]), None)
+        lines.append("")
         for p in profiles:
-            steps = p["steps_in_window"]
-            g = p["processes"].get("mpm_solver")
-            if g:
-                vals = [1e3 * g["groups"][name] / 997 / steps for name, _ in MPM_GROUPS]
-                lines.append(f"| {p['case']} | mpm_solver | " + " | ".join(f"{v:.3f}" for v in vals) +
-                             f" | {1e3 * g['groups']['other'] / 997 / steps:.3f} | {1e3 * g['on_cpu_s'] / steps:.3f} | "
-                             f"{1e3 * g['off_cpu_s'] / steps:.3f} |")
-        own = LAMMPS_GROUPS[1][0]
-        for p in profiles:
-            g = p["processes"].get("lmp_hybrid")
-            every = next((c["every"] for c in cases if c["name"] == p["case"]), 1)
-            if g and g["groups"][own] and next(c for c in cases if c["name"] == p["case"])["couple"]:
-                steps = p["steps_in_window"]
-                items = ", ".join(f"{name} {1e3 * n / 997 / steps * every:.3f}"
-                                  for name, n in g["top_by_group"][own])
-                lines += ["", f"{p['case']}: largest parts of the fix's own DEM-side work, ms per exchange: {items}."]
+            case = next(c for c in cases if c["name"] == p["case"])
+            if not case["couple"] or "lmp_hybrid" not in p["processes"]:
+                continue
+            e = case["every"]
+            lg = p["processes"]["lmp_hybrid"]["ms_per_step"]
+            mg = p["processes"].get("mpm_solver", {}).get("ms_per_step", {})
+            work_ms = lambda d: d[L[2]] + d[L[3]]
+            delta = (f"{work_ms(lg) - work_ms(ref['processes']['lmp_hybrid']['ms_per_step']):+.3f} ms per step"
+                     if ref and "lmp_hybrid" in ref["processes"] else "?")
+            own = p["processes"]["lmp_hybrid"]["top_ms_per_step"][L[1]]
+            items = ", ".join(f"{n} {e * v:.3f}" for n, v in own)
+            lines.append(
+                f"- {p['case']}, per exchange: the fix's own DEM-side work {e * lg[L[1]]:.3f} ms ({items}); "
+                f"waiting for the MPM process {e * (lg[L[0]] + lg['sleep']):.3f} ms ({e * lg[L[0]]:.3f} polling, "
+                f"{e * lg['sleep']:.3f} asleep), while the MPM process computed {e * mg.get(M[1], 0.0):.3f} ms (its "
+                f"substep and the agreement); LAMMPS's own work (pair and the other fixes) {delta} against the "
+                f"uncoupled profile.")
     lines.append("")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text("\n".join(lines))
     args.out.with_suffix(".json").write_text(json.dumps(
         {"command": command, "date": stamp, "cores": os.cpu_count(), "size": size, "reps": args.reps,
-         "target": TARGET, "build": {"commit": head, "uncommitted": dirty, "built": built}, "summary": summary, "runs": runs, "profiles": profiles}, indent=1))
+         "target": TARGET, "build": {"commit": head, "uncommitted": dirty, "binaries": binaries}, "summary": summary, "runs": runs, "profiles": profiles}, indent=1))
     print("\n".join(lines))
     return 0
 

@@ -52,8 +52,8 @@ namespace {
 
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
-    "grain_density, critical_packing, wall, container, cfl, pic, support, points_per_cell, inertia, output, every, "
-    "timeout, idle";
+    "grain_density, critical_packing, wall, container, cfl, pic, support, points_per_cell, inertia, output, "
+    "mpm_state, every, timeout, idle";
 
 // Thermo vector entries (docs/fix_hybrid_mpm.md)
 enum {
@@ -86,7 +86,9 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), cell(-1.0), reply_timeout(30.0), idle_timeout(600.0),
     model(coupler::kModelDruckerPrager), every(1), hybrid_width(2), inertia(-1.0),
     settings(new coupler::ContinuumSettings), diameter_given(false), density_given(false), exchanges(0),
-    restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr), converted(false), convert_pending(false),
+    restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
+    converted(false), convert_pending(false), restored(false), state_loaded(false), clock_time(0.0),
+    clock_step(-1), clock_dt(0.0),
     stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1)
 {
   // fix ID group hybrid/mpm keyword value ...
@@ -187,7 +189,8 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
         illegal(fmt::format("keyword 'output': the file name is longer than {} characters", sizeof(c.output_path) - 1));
       coupler::set_text(c.output_path, output_path);
       used = 3;
-    } else if (key == "every") every = integer(key, val);
+    } else if (key == "mpm_state") mpm_state_path = val;
+    else if (key == "every") every = integer(key, val);
     else if (key == "timeout") reply_timeout = positive(key, val, "seconds");
     else if (key == "idle") {
       idle_timeout = number(key, val);
@@ -212,6 +215,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   extvector = 0;
   restart_global = 1;
   restart_peratom = 1;
+  restart_file = 1;          // the MPM process saves its state next to every restart file
   force_reneighbor = 1;      // the conversion deletes grains at a pre_exchange
   next_reneighbor = -1;
   maxexchange = 4;
@@ -331,7 +335,7 @@ void FixHybridMPM::connect()
     hello.box_hi[d] = domain->boxhi[d];
   }
   hello.step = update->ntimestep;
-  hello.time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
+  hello.time = dem_time();
   hello.continuum = *settings;
   for (int d = 0; d < 3; d++) {
     hello.continuum.container_lo[d] = domain->boxlo[d];
@@ -427,6 +431,12 @@ void FixHybridMPM::cell_centre(std::size_t c, double *centre) const
   }
 }
 
+double FixHybridMPM::dem_time() const
+{
+  if (clock_step < 0) return update->atime + (update->ntimestep - update->atimestep) * update->dt;
+  return clock_time + (update->ntimestep - clock_step) * clock_dt;
+}
+
 int FixHybridMPM::zone_of(const double *x) const
 {
   if (zones.empty()) return coupler::kDiscrete;
@@ -442,8 +452,20 @@ int FixHybridMPM::zone_of(const double *x) const
 
 void FixHybridMPM::setup(int /*vflag*/)
 {
+  // the coupling's clock: LAMMPS's own time at the first run, kept by the fix from then on
+  // (this LAMMPS does not restore the simulated time from restart files); re-anchored when
+  // the time step changes between runs
+  if (clock_step < 0) {
+    clock_time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
+    clock_step = update->ntimestep;
+  } else if (clock_dt != update->dt) {
+    clock_time = dem_time();
+    clock_step = update->ntimestep;
+  }
+  clock_dt = update->dt;
   if (!link) connect();
   if (zones.empty()) compute_zones();
+  if (restored && !state_loaded) load_mpm_state();
   if (converted || region_ids.empty()) return;
   // Love-Weber stress of the grains about to become points: per-atom virial of this
   // (setup) step, kept by local index until the conversion at the next pre_exchange
@@ -525,7 +547,7 @@ void FixHybridMPM::convert()
     if (comm->me == 0) {
       coupler::StepHeader h;
       h.step = update->ntimestep;
-      h.time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
+      h.time = dem_time();
       h.dt = update->dt;
       h.kind = coupler::kStepConvert;
       link->send_struct(0, coupler::kTagStep, h, "the conversion header");
@@ -634,7 +656,7 @@ void FixHybridMPM::exchange(bool force_output)
     if (comm->me == 0) {
       coupler::StepHeader h;
       h.step = update->ntimestep;
-      h.time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
+      h.time = dem_time();
       h.dt = update->dt;
       h.kind = coupler::kStepCouple;
       h.output = output_frame ? 1 : 0;
@@ -825,12 +847,14 @@ double FixHybridMPM::memory_usage()
 
 void FixHybridMPM::write_restart(FILE *fp)
 {
-  double list[4];
+  double list[6];
   int n = 0;
   list[n++] = cell;
   list[n++] = static_cast<double>(exchanges + restart_exchanges);
   list[n++] = static_cast<double>(every);
   list[n++] = converted ? 1.0 : 0.0;
+  list[n++] = dem_time();
+  list[n++] = static_cast<double>(update->ntimestep);
   if (comm->me == 0) {
     int size = n * sizeof(double);
     fwrite(&size, sizeof(int), 1, fp);
@@ -847,10 +871,70 @@ void FixHybridMPM::restart(char *buf)
     error->warning(FLERR, fmt::format("Fix hybrid/mpm: restart file has cell {}, the input says {}; using {}",
                                       list[0], cell, cell));
   restart_exchanges = static_cast<bigint>(list[1]);
-  if (list[3] != 0.0)
-    error->all(FLERR, "Fix hybrid/mpm: the restart file was written after grains became material points; "
-                      "restarting needs the MPM state too, which this version does not save yet - restart from "
-                      "a file written before the first coupled step");
+  clock_time = list[4];
+  clock_step = static_cast<bigint>(list[5]);
+  clock_dt = update->dt;
+  if (list[3] != 0.0) {
+    // grains already became points: the MPM process continues from the state saved with the file
+    converted = true;
+    restored = true;
+    if (mpm_state_path.empty())
+      error->all(FLERR, "Fix hybrid/mpm: the restart file was written after grains became material points; "
+                        "add the keyword 'mpm_state FILE' with the MPM state written next to it "
+                        "(<restart file>.mpm.h5)");
+  }
+}
+
+/* ----------------------------------------------------------------------
+   the MPM process writes its state next to every LAMMPS restart file
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::write_restart_file(const char *file)
+{
+  if (!link || !converted) return;
+  state_request(coupler::kStepSave, std::string(file) + ".mpm.h5");
+}
+
+void FixHybridMPM::load_mpm_state()
+{
+  state_request(coupler::kStepLoad, mpm_state_path);
+  state_loaded = true;
+}
+
+void FixHybridMPM::state_request(int kind, const std::string &path)
+{
+  int status = 0;
+  std::string what;
+  coupler::StepAck ack;
+  const char *verb = kind == coupler::kStepSave ? "saving" : "loading";
+  try {
+    if (comm->me == 0) {
+      coupler::StepHeader h;
+      h.step = update->ntimestep;
+      h.time = dem_time();
+      h.dt = update->dt;
+      h.kind = kind;
+      coupler::StateRequest request;
+      if (path.size() >= sizeof(request.path))
+        throw coupler::PeerError(fmt::format("the MPM state path {} is too long", path));
+      coupler::set_text(request.path, path);
+      request.exchanges = exchanges + restart_exchanges;
+      link->send_struct(0, coupler::kTagStep, h, "the state request header");
+      link->send_struct(0, coupler::kTagState, request, "the state request");
+    }
+    ack = link->receive(0, {coupler::kTagStepAck}, fmt::format("the MPM process {} its state", verb))
+              .as<coupler::StepAck>();
+    if (ack.status != 0) status = 2, what = fmt::format("{} the MPM state failed: {}", verb,
+                                                         coupler::get_text(ack.message));
+  } catch (const coupler::PeerError &e) {
+    status = 1;
+    what = e.what();
+  }
+  check_all(status, what);
+  *last_ack = ack;
+  if (comm->me == 0)
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: MPM state {} {} ({} material points)\n",
+                                    kind == coupler::kStepSave ? "saved to" : "loaded from", path, ack.points));
 }
 
 /* ----------------------------------------------------------------------

@@ -45,6 +45,7 @@ class FixHybridMPM : public Fix {
   double compute_vector(int) override;
   double memory_usage() override;
   void write_restart(FILE *) override;
+  void write_restart_file(const char *) override;
   void restart(char *) override;
 
   // per-atom hybrid weight: exchanged with the atoms and kept in restart files
@@ -87,6 +88,12 @@ class FixHybridMPM : public Fix {
   std::vector<signed char> zones;         // coupler::Zone per grid cell (same on all ranks)
   bool converted;                         // grains of the continuum regions became points
   bool convert_pending;                   // conversion at the next pre_exchange
+  bool restored;                          // restarted after the conversion: load the MPM state
+  bool state_loaded;                      // the MPM process has loaded it
+  std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)
+  double clock_time;                      // DEM time at clock_step (the coupling's clock)
+  bigint clock_step;                      // -1 until the first setup
+  double clock_dt;
   std::vector<double> setup_stress;       // per local atom stress*volume at setup (6 each)
   char *stress_id;                        // compute stress/atom for the Love-Weber stress
 
@@ -104,9 +111,12 @@ class FixHybridMPM : public Fix {
                      const std::vector<coupler::NodeMomentum<D>> &nodes,
                      const std::vector<coupler::NodeUpdate> &updates, const std::vector<int> &index);
   void send_grains(const std::string &what);
+  void load_mpm_state();
+  void state_request(int kind, const std::string &path);
   void check_all(int status, const std::string &what);
   void compute_zones();
   int zone_of(const double *x) const;
+  double dem_time() const;
   void cell_centre(std::size_t c, double *centre) const;
   void grain_defaults();
   void fill_thermo_vector();

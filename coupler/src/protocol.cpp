@@ -185,6 +185,7 @@ const char* tag_name(int tag) {
     case kTagNodes: return "NodeRecords";
     case kTagNodeReply: return "NodeUpdates";
     case kTagGrains: return "GrainRecords";
+    case kTagState: return "StateRequest";
     case kTagFinish: return "Finish";
     case kTagAbort: return "AbortNote";
     default: return "an unknown message";

@@ -141,6 +141,30 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
         if (ack.status != 0) return 2;
         continue;
       }
+      if (h.kind == coupler::kStepSave || h.kind == coupler::kStepLoad) {
+        const auto request = link.receive(0, {coupler::kTagState}, "the state request").as<coupler::StateRequest>();
+        const std::string path = coupler::get_text(request.path);
+        coupler::StepAck ack;
+        try {
+          if (h.kind == coupler::kStepSave) {
+            continuum.save(path, h.step, request.exchanges);
+            ack = continuum.finish_step(h.step);  // no substep is open between exchanges: only the totals
+          } else {
+            continuum.load(path);
+            ack = continuum.finish_step(h.step);
+          }
+        } catch (const UserError& e) {
+          ack = error_ack(h.step, e.what());
+        }
+        ack.step = h.step;
+        say(opt, std::string(h.kind == coupler::kStepSave ? "saved the state to " : "loaded the state from ") + path);
+        ack_all(link, ack, "the state request's acknowledgement");
+        if (ack.status != 0) {
+          error_line(coupler::get_text(ack.message));
+          return 2;
+        }
+        continue;
+      }
       const auto nodes = receive_from_all<coupler::NodeRecord>(link, coupler::kTagNodes, "the grain node sums" + at);
       coupler::StepAck ack;
       try {

@@ -7,6 +7,7 @@
 
 #include "coupler/stencil.hpp"
 #include "coupler/zones.hpp"
+#include "mpm/state_file.hpp"
 
 namespace mpm {
 
@@ -284,6 +285,51 @@ coupler::StepAck CoupledContinuum<D>::totals(std::int64_t step) const {
   else
     for (int a = 0; a < 3; ++a) ack.angular[a] = L[a];
   return ack;
+}
+
+template <int D>
+void CoupledContinuum<D>::save(const std::string& path, std::int64_t dem_step, std::int64_t exchanges) const {
+  ContinuumState<D> state;
+  state.points = solver_.points();
+  state.zones = zones_;
+  for (std::size_t k : support_nodes_) {
+    state.support_nodes.push_back(k);
+    state.support_forces.push_back(support_force_[k]);
+  }
+  state.time = time_;
+  state.solver_time = solver_.time();
+  state.solver_steps = solver_.steps();
+  state.dem_step = dem_step;
+  state.exchanges = exchanges;
+  state.cell = hello_.cell;
+  for (int a = 0; a < 3; ++a) state.box_lo[a] = hello_.box_lo[a], state.box_hi[a] = hello_.box_hi[a];
+  state.model = hello_.model;
+  save_state<D>(path, state);
+}
+
+template <int D>
+void CoupledContinuum<D>::load(const std::string& path) {
+  ContinuumState<D> state = load_state<D>(path);
+  const double tol = 1e-12 * hello_.cell;
+  bool same_grid = std::abs(state.cell - hello_.cell) <= tol && state.model == hello_.model;
+  for (int a = 0; a < D; ++a)
+    same_grid = same_grid && std::abs(state.box_lo[a] - hello_.box_lo[a]) <= tol &&
+                std::abs(state.box_hi[a] - hello_.box_hi[a]) <= tol;
+  if (!same_grid || state.zones.size() != zones_.size())
+    throw UserError("the MPM state " + path + " was saved with another box, cell size or model than this run's "
+                    "fix hybrid/mpm line; restart with the same box, cell and model");
+  zones_ = std::move(state.zones);
+  for (std::size_t k : support_nodes_) support_force_[k].setZero();
+  support_nodes_.clear();
+  for (std::size_t i = 0; i < state.support_nodes.size(); ++i) {
+    const std::size_t k = state.support_nodes[i];
+    if (k >= support_force_.size()) throw UserError("the MPM state " + path + " names a node outside the grid");
+    support_force_[k] = state.support_forces[i];
+    support_nodes_.push_back(k);
+  }
+  time_ = state.time;
+  solver_.restore(std::move(state.points), state.solver_time, state.solver_steps);
+  pending_dt_ = -1;
 }
 
 template <int D>

@@ -108,67 +108,15 @@ std::string join_dims(const std::vector<hsize_t>& dims) {
   return s;
 }
 
-/// Checks HDF5 results and turns failures into exceptions naming the file,
-/// the operation and the object.
-class Checker {
- public:
-  explicit Checker(std::string path) : path_(std::move(path)) {}
-
-  [[noreturn]] void fail(const char* op, const std::string& object) const {
-    const std::string detail = h5::error_stack_message();
-    std::string msg = "HDF5 output file '" + path_ + "': cannot " + op;
-    if (!object.empty()) msg += " '" + object + "'";
-    if (!detail.empty()) msg += " (" + detail + ")";
-    throw std::runtime_error(msg);
-  }
-  hid_t id(hid_t v, const char* op, const std::string& object) const {
-    if (v < 0) fail(op, object);
-    return v;
-  }
-  void ok(herr_t v, const char* op, const std::string& object) const {
-    if (v < 0) fail(op, object);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
-
-/// A location (file or group) together with its path inside the file, for messages.
-struct Loc {
-  hid_t id;
-  std::string path;
-  std::string child(const char* name) const { return (path == "/" ? "/" : path + "/") + name; }
-};
-
-h5::Group create_group(const Checker& h5, const Loc& loc, const char* name) {
-  return h5::Group(h5.id(H5Gcreate2(loc.id, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create group",
-                         loc.child(name)));
-}
-
-h5::Dataset create_dataset(const Checker& h5, const Loc& loc, const char* name, hid_t file_type,
-                           const std::vector<hsize_t>& dims) {
-  const std::string object = loc.child(name);
-  h5::Dataspace space(h5.id(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr),
-                            "create the dataspace of", object));
-  // Default creation properties: contiguous layout, no filters; fast to write and to read whole.
-  return h5::Dataset(h5.id(H5Dcreate2(loc.id, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                           "create dataset", object));
-}
-
-std::size_t element_count(const std::vector<hsize_t>& dims) {
-  std::size_t n = 1;
-  for (hsize_t d : dims) n *= static_cast<std::size_t>(d);
-  return n;
-}
-
-/// Writes a dataset straight from memory laid out exactly like the dataset.
-void write_direct(const Checker& h5, const Loc& loc, const char* name, hid_t file_type, hid_t mem_type,
-                  const std::vector<hsize_t>& dims, const void* data) {
-  h5::Dataset ds = create_dataset(h5, loc, name, file_type, dims);
-  if (element_count(dims) == 0) return;  // nothing to write (and data may be null)
-  h5.ok(H5Dwrite(ds.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "write dataset", loc.child(name));
-}
+using h5::Checker;
+using h5::create_dataset;
+using h5::create_group;
+using h5::element_count;
+using h5::Loc;
+using h5::utf8_string_type;
+using h5::write_attribute;
+using h5::write_direct;
+using h5::write_string_attribute;
 
 /// Writes a float64 dataset whose first dimension counts items (points, or
 /// slabs of grid nodes); `fill(item, out)` writes the item's product(dims[1:])
@@ -202,30 +150,6 @@ void write_derived(const Checker& h5, const Loc& loc, const char* name, const st
     h5.ok(H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, mem_space.get(), file_space.get(), H5P_DEFAULT, buf.data()),
           "write dataset", object);
   }
-}
-
-/// A numeric attribute: a scalar if n == 0, else a 1-D array of n values.
-void write_attribute(const Checker& h5, const Loc& loc, const char* name, hid_t file_type, hid_t mem_type,
-                     const void* data, hsize_t n = 0) {
-  const std::string object = "attribute " + std::string(name) + " of " + loc.path;
-  h5::Dataspace space(h5.id(n == 0 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &n, nullptr),
-                            "create the dataspace of", object));
-  h5::Attribute attr(h5.id(H5Acreate2(loc.id, name, file_type, space.get(), H5P_DEFAULT, H5P_DEFAULT), "create",
-                           object));
-  h5.ok(H5Awrite(attr.get(), mem_type, data), "write", object);
-}
-
-h5::Datatype utf8_string_type(const Checker& h5) {
-  h5::Datatype type(h5.id(H5Tcopy(H5T_C_S1), "copy", "the string datatype"));
-  h5.ok(H5Tset_size(type.get(), H5T_VARIABLE), "set the size of", "the string datatype");
-  h5.ok(H5Tset_cset(type.get(), H5T_CSET_UTF8), "set the character set of", "the string datatype");
-  return type;
-}
-
-void write_string_attribute(const Checker& h5, const Loc& loc, const char* name, const std::string& value) {
-  h5::Datatype type = utf8_string_type(h5);
-  const char* ptr = value.c_str();
-  write_attribute(h5, loc, name, type.get(), type.get(), &ptr);
 }
 
 // ---------------------------------------------------------------------------

@@ -219,6 +219,22 @@ void Solver<D>::advance_clock(double dt) {
 }
 
 template <int D>
+void Solver<D>::restore(Particles<D> points, double time, long steps) {
+  points_ = std::move(points);
+  time_ = time;
+  steps_ = steps;
+  update_rigid_boundaries();
+  max_wave_speed_ = 0;
+  max_speed_ = 0;
+  for (std::size_t p = 0; p < points_.size(); ++p) {
+    const MaterialModel& model = materials_.at(points_.material[p]);
+    const double density = points_.mass[p] / points_.volume0[p];  // the wave speed add_point used
+    max_wave_speed_ = std::max(max_wave_speed_, std::sqrt((model.lame_lambda + 2.0 * model.shear_modulus) / density));
+    max_speed_ = std::max(max_speed_, points_.v[p].norm());
+  }
+}
+
+template <int D>
 void Solver<D>::add_point(const Vec<D>& x, const Vec<D>& v, const Mat<D>& C, double mass, double volume,
                           const Mat<D>& stress, std::uint16_t material) {
   const MaterialModel& model = materials_.at(material);

@@ -59,6 +59,7 @@ enum Tag : int {
   kTagNodes = 7314,       ///< every DEM rank -> MPM, NodeRecord[] of its coupled grains
   kTagNodeReply = 7315,   ///< MPM -> every DEM rank, NodeUpdate[] in the order of its NodeRecords
   kTagGrains = 7316,      ///< every DEM rank -> MPM at output frames, GrainRecord[]
+  kTagState = 7317,       ///< DEM leader -> MPM, StateRequest (save or load the MPM state)
   kTagFinish = 7320,      ///< DEM -> MPM, Finish: the coupled run is over, MPM exits 0
   kTagAbort = 7330,       ///< DEM -> MPM, AbortNote: DEM stopped on an error, MPM exits 1
 };
@@ -132,6 +133,14 @@ struct HelloReply {
 enum StepKind : std::int32_t {
   kStepCouple = 0,   ///< NodeRecords follow from every DEM rank; NodeUpdates go back
   kStepConvert = 1,  ///< the zone map and CellMoments follow (grains become material points)
+  kStepSave = 2,     ///< a StateRequest follows: write the MPM state (next to a LAMMPS restart file)
+  kStepLoad = 3,     ///< a StateRequest follows: continue from a saved MPM state
+};
+
+/// DEM leader -> MPM: where to save or load the MPM state.
+struct StateRequest {
+  char path[4096] = {};
+  std::int64_t exchanges = 0;        ///< exchanges so far (kept in the state file)
 };
 
 /// DEM leader -> MPM, at every exchange (every mpm_every steps) and at the conversion.

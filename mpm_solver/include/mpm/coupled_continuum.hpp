@@ -37,6 +37,11 @@ class CoupledContinuum {
   /// Completes the substep (G2P) and returns the acknowledgement with the continuum totals.
   coupler::StepAck finish_step(std::int64_t step);
 
+  /// Saves the exact state to `path` (HDF5, mpm/state_file.hpp); throws UserError.
+  void save(const std::string& path, std::int64_t dem_step, std::int64_t exchanges) const;
+  /// Continues from a saved state; throws UserError if it does not fit this run's grid.
+  void load(const std::string& path);
+
   /// Writes one frame (points, grid and the grains the DEM ranks sent).
   void write_frame(const std::vector<std::vector<coupler::GrainRecord>>& grains, std::int64_t step);
 

@@ -42,6 +42,8 @@ class Solver {
   void advance_clock(double dt);
   /// Applies the boundary conditions to velocity v at grid node `node`.
   void constrain_velocity(std::size_t node, Vec<D>& v) const { apply_boundaries(node, v); }
+  /// Replaces the points and the clock with a saved state (coupled restarts).
+  void restore(Particles<D> points, double time, long steps);
   /// Adds a material point with the given state (coupled runs: points made from grains).
   /// The elastic state is the one that gives `stress`; the stable step accounts for the
   /// point's own density.
