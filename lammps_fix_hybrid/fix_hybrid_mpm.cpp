@@ -38,6 +38,8 @@
 #include "coupler/version.hpp"
 #include "coupler/zones.hpp"
 
+#include <memory>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -265,6 +267,7 @@ int FixHybridMPM::setmask()
 {
   int mask = 0;
   mask |= PRE_EXCHANGE;    // conversion of the continuum regions' grains (first step)
+  mask |= POST_NEIGHBOR;   // atoms were reordered: rebuild the list of supported grains
   mask |= END_OF_STEP;     // the coupling exchange
   mask |= POST_RUN;
   return mask;
@@ -401,6 +404,11 @@ void FixHybridMPM::compute_zones()
                                             Eigen::Map<const Vec<3>>(domain->boxhi), hybrid_width, inside);
   }
   if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
+  if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, cell));
+  else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, cell));
+  if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
+  if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, cell));
+  else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, cell));
   if (comm->me == 0) {
     // cells of the box only (the padding cells around it are continuum by convention)
     bigint n[3] = {0, 0, 0};
@@ -421,14 +429,26 @@ void FixHybridMPM::compute_zones()
 void FixHybridMPM::cell_centre(std::size_t c, double *centre) const
 {
   if (domain->dimension == 2) {
-    const auto grid = box_grid<2>(domain, cell);
+    const auto &grid = transfer2->grid();
     const Vec<2> x = coupler::cell_center<2>(grid, coupler::cell_coords<2>(grid, c));
     for (int d = 0; d < 2; d++) centre[d] = x[d];
   } else {
-    const auto grid = box_grid<3>(domain, cell);
+    const auto &grid = transfer3->grid();
     const Vec<3> x = coupler::cell_center<3>(grid, coupler::cell_coords<3>(grid, c));
     for (int d = 0; d < 3; d++) centre[d] = x[d];
   }
+}
+
+template <>
+coupler::GrainTransfer<2> &FixHybridMPM::transfer<2>()
+{
+  return *transfer2;
+}
+
+template <>
+coupler::GrainTransfer<3> &FixHybridMPM::transfer<3>()
+{
+  return *transfer3;
 }
 
 double FixHybridMPM::dem_time() const
@@ -441,10 +461,10 @@ int FixHybridMPM::zone_of(const double *x) const
 {
   if (zones.empty()) return coupler::kDiscrete;
   if (domain->dimension == 2) {
-    const auto grid = box_grid<2>(domain, cell);
+    const auto &grid = transfer2->grid();
     return zones[coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, Eigen::Map<const Vec<2>>(x)))];
   }
-  const auto grid = box_grid<3>(domain, cell);
+  const auto &grid = transfer3->grid();
   return zones[coupler::cell_index<3>(grid, coupler::cell_of<3>(grid, Eigen::Map<const Vec<3>>(x)))];
 }
 
@@ -596,7 +616,7 @@ void FixHybridMPM::end_of_step()
   // exchange; its impulse is taken from the points over the same interval)
   const double dt = update->dt;
   double **v = atom->v;
-  for (int i = 0; i < atom->nlocal; i++)
+  for (int i : supported)
     for (int a = 0; a < 3; a++) v[i][a] += dt * support[i][a];
   if (update->ntimestep % every != 0) return;
   if (domain->dimension == 2) exchange<2>(false);
@@ -611,7 +631,6 @@ void FixHybridMPM::end_of_step()
 template <int D>
 void FixHybridMPM::exchange(bool force_output)
 {
-  const auto grid = box_grid<D>(domain, cell);
   double **x = atom->x, **v = atom->v;
   double *rmass = atom->rmass;
   int *mask = atom->mask;
@@ -633,7 +652,7 @@ void FixHybridMPM::exchange(bool force_output)
   view.x = xs.data();
   view.v = vs.data();
   view.mass = ms.data();
-  const auto nodes = coupler::grains_to_nodes<D>(grid, view);
+  const auto &nodes = transfer<D>().to_nodes(view);
   std::vector<coupler::NodeRecord> records(nodes.size());
   for (std::size_t k = 0; k < nodes.size(); ++k) {
     records[k].node = nodes[k].node;
@@ -671,7 +690,7 @@ void FixHybridMPM::exchange(bool force_output)
       if (updates.size() != records.size())
         throw coupler::PeerError(fmt::format("protocol error: {} node velocities for {} nodes", updates.size(),
                                              records.size()));
-      apply_updates<D>(grid, view, nodes, updates, index);
+      apply_updates<D>(view, updates, index);
       if (output_frame) send_grains("the grains of the output frame" + at_step);
       m = link->receive(0, {coupler::kTagStepAck}, "the acknowledgement" + at_step);
     }
@@ -696,9 +715,8 @@ void FixHybridMPM::exchange(bool force_output)
 ------------------------------------------------------------------------- */
 
 template <int D>
-void FixHybridMPM::apply_updates(const coupler::GridGeometry<D> &grid, const coupler::GrainView &view,
-                                 const std::vector<coupler::NodeMomentum<D>> &nodes,
-                                 const std::vector<coupler::NodeUpdate> &updates, const std::vector<int> &index)
+void FixHybridMPM::apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
+                                 const std::vector<int> &index)
 {
   std::vector<coupler::AgreedNode<D>> agreed(updates.size());
   for (std::size_t k = 0; k < updates.size(); ++k)
@@ -708,14 +726,40 @@ void FixHybridMPM::apply_updates(const coupler::GridGeometry<D> &grid, const cou
       agreed[k].support[a] = updates[k].support[a];
     }
   std::vector<double> dv(index.size() * D), accel(index.size() * D);
-  coupler::grain_velocity_updates<D>(grid, view, nodes, agreed, settings->pic, dv.data(), accel.data());
+  transfer<D>().velocity_updates(view, agreed, settings->pic, dv.data(), accel.data());
   double **v = atom->v;
-  for (int i = 0; i < atom->nlocal; i++) support[i][0] = support[i][1] = support[i][2] = 0.0;
-  for (std::size_t g = 0; g < index.size(); ++g)
+  for (int i : supported) support[i][0] = support[i][1] = support[i][2] = 0.0;
+  supported.clear();
+  for (std::size_t g = 0; g < index.size(); ++g) {
+    bool any = false;
     for (int a = 0; a < D; ++a) {
       v[index[g]][a] += dv[g * D + a];
       support[index[g]][a] = accel[g * D + a];
+      any = any || accel[g * D + a] != 0.0;
     }
+    if (any) supported.push_back(index[g]);
+  }
+}
+
+/* ----------------------------------------------------------------------
+   local atoms with a support acceleration, after atoms were reordered
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::collect_supported()
+{
+  supported.clear();
+  for (int i = 0; i < atom->nlocal; i++)
+    if (support[i][0] != 0.0 || support[i][1] != 0.0 || support[i][2] != 0.0) supported.push_back(i);
+}
+
+void FixHybridMPM::setup_post_neighbor()
+{
+  collect_supported();
+}
+
+void FixHybridMPM::post_neighbor()
+{
+  collect_supported();
 }
 
 /* ----------------------------------------------------------------------

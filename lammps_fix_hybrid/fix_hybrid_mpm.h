@@ -27,6 +27,7 @@ struct NodeUpdate;
 struct GrainView;
 template <int D> struct GridGeometry;
 template <int D> struct NodeMomentum;
+template <int D> class GrainTransfer;
 }
 
 namespace LAMMPS_NS {
@@ -39,6 +40,8 @@ class FixHybridMPM : public Fix {
   void init() override;
   void setup(int) override;
   void pre_exchange() override;
+  void setup_post_neighbor() override;
+  void post_neighbor() override;
   void end_of_step() override;
   void post_run() override;
   double compute_scalar() override;
@@ -85,6 +88,9 @@ class FixHybridMPM : public Fix {
 
   double *weight;                         // per-atom share of its material a grain carries
   double **support;                       // per-atom acceleration from the continuum until the next exchange
+  std::vector<int> supported;             // local atoms with a support acceleration (valid until reneighboring)
+  std::unique_ptr<coupler::GrainTransfer<2>> transfer2;    // grain <-> node transfers (2D runs)
+  std::unique_ptr<coupler::GrainTransfer<3>> transfer3;    // (3D runs)
   std::vector<signed char> zones;         // coupler::Zone per grid cell (same on all ranks)
   bool converted;                         // grains of the continuum regions became points
   bool convert_pending;                   // conversion at the next pre_exchange
@@ -106,10 +112,11 @@ class FixHybridMPM : public Fix {
   void connect();
   template <int D> void convert();
   template <int D> void exchange(bool force_output);
+  template <int D> coupler::GrainTransfer<D> &transfer();
   template <int D>
-  void apply_updates(const coupler::GridGeometry<D> &grid, const coupler::GrainView &view,
-                     const std::vector<coupler::NodeMomentum<D>> &nodes,
-                     const std::vector<coupler::NodeUpdate> &updates, const std::vector<int> &index);
+  void apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
+                     const std::vector<int> &index);
+  void collect_supported();
   void send_grains(const std::string &what);
   void load_mpm_state();
   void state_request(int kind, const std::string &path);

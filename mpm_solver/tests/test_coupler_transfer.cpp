@@ -47,7 +47,8 @@ void agreement_conserves_and_agrees() {
   using V = Eigen::Matrix<double, D, 1>;
   const Scene<D> s = random_scene<D>(5, 300);
   const auto view = s.view();
-  const auto dem = coupler::grains_to_nodes<D>(s.grid, view);
+  coupler::GrainTransfer<D> transfer(s.grid);
+  const auto dem = transfer.to_nodes(view);
   ASSERT_FALSE(dem.empty());
 
   // Weighted grain totals are what the nodes hold.
@@ -93,7 +94,7 @@ void agreement_conserves_and_agrees() {
   }
   for (double pic : {0.0, 0.3, 1.0}) {
     std::vector<double> dv(view.count * D);
-    coupler::grain_velocity_updates<D>(s.grid, view, dem, agreed, pic, dv.data());
+    transfer.velocity_updates(view, agreed, pic, dv.data());
     V p_after = V::Zero();
     for (std::size_t g = 0; g < view.count; ++g)
       p_after += s.weight[g] * s.mass[g] * (Eigen::Map<const V>(&s.v[g * 3]) + Eigen::Map<const V>(&dv[g * D]));

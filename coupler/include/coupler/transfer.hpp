@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "coupler/bspline.hpp"
@@ -54,34 +55,6 @@ void for_each_node(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1
 }
 }  // namespace detail
 
-/// Weighted grain mass and momentum on the nodes they touch, one entry per
-/// node, sorted by node index. Summation order is fixed, so the result does
-/// not depend on anything but the input order. Grains must lie where their
-/// stencil is on the grid (GridGeometry::stencil_on_grid).
-template <int D>
-std::vector<NodeMomentum<D>> grains_to_nodes(const GridGeometry<D>& grid, const GrainView& grains) {
-  struct Entry {
-    std::size_t node;
-    std::size_t grain;
-    double w;
-  };
-  std::vector<Entry> entries;
-  entries.reserve(grains.count * (D == 2 ? 9 : 27));
-  for (std::size_t g = 0; g < grains.count; ++g)
-    detail::for_each_node<D>(grid, detail::read<D>(grains.x, g, grains.stride),
-                             [&](std::size_t node, double w) { entries.push_back({node, g, w}); });
-  std::stable_sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.node < b.node; });
-  std::vector<NodeMomentum<D>> nodes;
-  for (const Entry& e : entries) {
-    if (nodes.empty() || nodes.back().node != e.node)
-      nodes.push_back({e.node, 0.0, Eigen::Matrix<double, D, 1>::Zero()});  // {} would leave it uninitialised
-    const double m = e.w * grains.weight_of(e.grain) * grains.mass[e.grain];
-    nodes.back().mass += m;
-    nodes.back().momentum += m * detail::read<D>(grains.v, e.grain, grains.stride);
-  }
-  return nodes;
-}
-
 /// The momentum lambda that moves from the MPM side to the DEM side at a node
 /// so that both end with the common velocity (p_mpm + p_dem)/(m_mpm + m_dem).
 template <int D>
@@ -98,39 +71,73 @@ struct AgreedNode {
   Eigen::Matrix<double, D, 1> support = Eigen::Matrix<double, D, 1>::Zero();  ///< F_i / m_dem_i
 };
 
-/// Velocity change of each grain after the agreement, blending two updates that both add
-/// exactly sum_i lambda_i to the weighted grain momentum:
-///   impulse (pic = 0):  dv_g = sum_i N_ig lambda_i / m_dem_i   (DESIGN.md section 5)
-///   field   (pic = 1):  dv_g = sum_i N_ig v_i - v_g            (the grain takes the agreed field)
-/// The field update conserves because sum_g w_g m_g N_ig = m_dem_i and sum_i N_ig = 1.
-/// `nodes` are the grains' nodes sorted by index (grains_to_nodes), `agreed` the answers for
-/// them in the same order; m_dem_i in lambda_i / m_dem_i is the node's DEM mass over all
-/// DEM ranks. Writes grains.count * D values to dv and, if `support` is given, the
-/// acceleration sum_i N_ig F_i / m_dem_i each grain gets until the next exchange (whose
-/// impulse over the grains, sum_g w_g m_g a_g, is exactly sum_i F_i, as for lambda).
+/// Transfers between grains and the nodes of the shared grid, with per-node scratch kept
+/// between calls (a dense node -> slot map, so each transfer costs O(grains), no sort of
+/// grain-node pairs). One instance per DEM rank and grid.
 template <int D>
-void grain_velocity_updates(const GridGeometry<D>& grid, const GrainView& grains,
-                            const std::vector<NodeMomentum<D>>& nodes, const std::vector<AgreedNode<D>>& agreed,
-                            double pic, double* dv, double* support = nullptr) {
+class GrainTransfer {
+ public:
   using V = Eigen::Matrix<double, D, 1>;
-  auto find = [&](std::size_t node) {
-    const auto it = std::lower_bound(nodes.begin(), nodes.end(), node,
-                                     [](const NodeMomentum<D>& n, std::size_t k) { return n.node < k; });
-    return static_cast<std::size_t>(it - nodes.begin());
-  };
-  for (std::size_t g = 0; g < grains.count; ++g) {
-    V impulse = V::Zero(), field = V::Zero(), accel = V::Zero();
-    detail::for_each_node<D>(grid, detail::read<D>(grains.x, g, grains.stride), [&](std::size_t node, double w) {
-      const std::size_t i = find(node);
-      if (i == nodes.size() || nodes[i].node != node) return;  // not reached: every stencil node is listed
-      impulse += w * agreed[i].impulse_per_mass;
-      field += w * agreed[i].velocity;
-      accel += w * agreed[i].support;
-    });
-    const V v = detail::read<D>(grains.v, g, grains.stride);
-    Eigen::Map<V>(dv + g * D) = (1.0 - pic) * impulse + pic * (field - v);
-    if (support != nullptr) Eigen::Map<V>(support + g * D) = accel;
+
+  explicit GrainTransfer(const GridGeometry<D>& grid) : grid_(grid), slot_(grid.num_nodes(), -1) {}
+
+  const GridGeometry<D>& grid() const { return grid_; }
+
+  /// Weighted grain mass and momentum on the nodes the grains touch, one entry per node,
+  /// sorted by node index. Each node sums its grains in their input order, so the result
+  /// depends on nothing but the input. Grains must lie where their stencil is on the grid
+  /// (GridGeometry::stencil_on_grid).
+  const std::vector<NodeMomentum<D>>& to_nodes(const GrainView& grains) {
+    for (const auto& n : nodes_) slot_[n.node] = -1;
+    nodes_.clear();
+    for (std::size_t g = 0; g < grains.count; ++g) {
+      const double m = grains.weight_of(g) * grains.mass[g];
+      const V p = m * detail::read<D>(grains.v, g, grains.stride);
+      detail::for_each_node<D>(grid_, detail::read<D>(grains.x, g, grains.stride), [&](std::size_t node, double w) {
+        if (slot_[node] < 0) {
+          slot_[node] = static_cast<std::int64_t>(nodes_.size());
+          nodes_.push_back({node, 0.0, V::Zero()});  // {} would leave the momentum uninitialised
+        }
+        NodeMomentum<D>& n = nodes_[static_cast<std::size_t>(slot_[node])];
+        n.mass += w * m;
+        n.momentum += w * p;
+      });
+    }
+    std::sort(nodes_.begin(), nodes_.end(), [](const auto& a, const auto& b) { return a.node < b.node; });
+    for (std::size_t i = 0; i < nodes_.size(); ++i) slot_[nodes_[i].node] = static_cast<std::int64_t>(i);
+    return nodes_;
   }
-}
+
+  /// Velocity change of each grain after the agreement, blending two updates that both add
+  /// exactly sum_i lambda_i to the weighted grain momentum:
+  ///   impulse (pic = 0):  dv_g = sum_i N_ig lambda_i / m_dem_i   (DESIGN.md section 5)
+  ///   field   (pic = 1):  dv_g = sum_i N_ig v_i - v_g            (the grain takes the agreed field)
+  /// The field update conserves because sum_g w_g m_g N_ig = m_dem_i and sum_i N_ig = 1.
+  /// `agreed` holds the answers for the nodes of the last to_nodes() in its order; m_dem_i in
+  /// lambda_i / m_dem_i is the node's DEM mass over all DEM ranks. Writes grains.count * D
+  /// values to dv and, if `support` is given, the acceleration sum_i N_ig F_i / m_dem_i each
+  /// grain gets until the next exchange (whose impulse over the grains, sum_g w_g m_g a_g, is
+  /// exactly sum_i F_i, as for lambda). The grains must be those of the last to_nodes().
+  void velocity_updates(const GrainView& grains, const std::vector<AgreedNode<D>>& agreed, double pic, double* dv,
+                        double* support = nullptr) const {
+    for (std::size_t g = 0; g < grains.count; ++g) {
+      V impulse = V::Zero(), field = V::Zero(), accel = V::Zero();
+      detail::for_each_node<D>(grid_, detail::read<D>(grains.x, g, grains.stride), [&](std::size_t node, double w) {
+        const AgreedNode<D>& a = agreed[static_cast<std::size_t>(slot_[node])];
+        impulse += w * a.impulse_per_mass;
+        field += w * a.velocity;
+        accel += w * a.support;
+      });
+      const V v = detail::read<D>(grains.v, g, grains.stride);
+      Eigen::Map<V>(dv + g * D) = (1.0 - pic) * impulse + pic * (field - v);
+      if (support != nullptr) Eigen::Map<V>(support + g * D) = accel;
+    }
+  }
+
+ private:
+  GridGeometry<D> grid_;
+  std::vector<std::int64_t> slot_;  ///< node -> index in nodes_, -1 if the grains do not touch it
+  std::vector<NodeMomentum<D>> nodes_;
+};
 
 }  // namespace coupler
