@@ -22,6 +22,7 @@ import hashlib
 import json
 import os
 import re
+import resource
 import shlex
 import shutil
 import statistics
@@ -40,6 +41,7 @@ BUILD = REPO / "build"
 MPIRUN = REPO / "tools" / "mpirun.sh"
 LAUNCH = REPO / "tools" / "hybrid_launch.py"
 TARGET = 0.05          # overhead of a LAMMPS step
+DISTURBED = 0.25       # other processes kept this many cores busy on average during a run: left out
 RUN_TIMEOUT = 180.0    # s, one LAMMPS job
 
 SIZES = {  # bed width (m), timed steps, warm-up steps
@@ -86,11 +88,17 @@ def case_command(case: dict, size: dict, log: Path) -> list[str]:
     return [str(MPIRUN), "-np", str(case["np"]), str(LMP), "-in", str(DECK), *lammps_vars]
 
 
-def cpu_times() -> tuple[float, float]:
-    """(total, steal) jiffies of all CPUs, from /proc/stat."""
-    fields = Path("/proc/stat").read_text().splitlines()[0].split()[1:]
-    values = [float(x) for x in fields]
-    return sum(values[:8]), values[7] if len(values) > 7 else 0.0
+def cpu_times() -> tuple[float, float, float]:
+    """(total, steal, busy) seconds of all CPUs together, from /proc/stat."""
+    values = [float(x) / os.sysconf("SC_CLK_TCK") for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
+    total = sum(values[:8])
+    return total, values[7] if len(values) > 7 else 0.0, total - values[3] - values[4]
+
+
+def children_cpu() -> float:
+    """CPU seconds of all finished descendants (mpirun, LAMMPS, mpm_solver, ...)."""
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
 
 
 def parse_log(text: str) -> dict:
@@ -157,18 +165,23 @@ def run_case(case: dict, size: dict, work: Path, tag: str, quiet: tuple[float, f
     env = dict(os.environ, OMP_NUM_THREADS="1")   # LAMMPS and mpm_solver: one thread each
     others = wait_for_quiet(*quiet) if quiet[1] > 0 else None
     load = os.getloadavg()[0]
-    tot0, st0 = cpu_times()
+    tot0, st0, busy0 = cpu_times()
+    own0 = children_cpu()
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, cwd=work, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                           timeout=RUN_TIMEOUT)
     wall = time.perf_counter() - t0
-    tot1, st1 = cpu_times()
+    tot1, st1, busy1 = cpu_times()
+    own = children_cpu() - own0
     (work / f"{tag}.out").write_text(proc.stdout)
     if proc.returncode != 0:
         sys.exit(f"coupling_overhead: {shlex.join(cmd)} failed (exit {proc.returncode}):\n{proc.stdout[-3000:]}")
     r = parse_log(log.read_text())
     r.update(case=case["name"], job_wall_s=wall, loadavg_1min_before=load, busy_cores_before=others,
-             steal_percent=100.0 * (st1 - st0) / max(tot1 - tot0, 1.0))
+             steal_percent=100.0 * (st1 - st0) / max(tot1 - tot0, 1e-9),
+             # cores kept busy by other processes during the job (all busy CPU time less this job's)
+             others_cores=max(0.0, (busy1 - busy0) - own) / wall)
+    r["disturbed"] = r["others_cores"] > DISTURBED
     r["step_s"] = r["loop_time"] / r["steps"]
     return r
 
@@ -395,7 +408,8 @@ def main() -> int:
                 r = run_case(case, size, work, f"{case['name']}_rep{rep}", (0.3, args.quiet_wait))
                 r["rep"] = rep
                 runs.append(r)
-                print(f"rep {rep} {case['name']:24s} {1e3 * r['step_s']:8.3f} ms/step  "
+                print(f"rep {rep} {case['name']:24s} {1e3 * r['step_s']:8.3f} ms/step{'*' if r['disturbed'] else ' '} "
+                      f"(others {r['others_cores']:.2f} cores) "
                       f"(Modify {1e3 * (r['sections'].get('Modify') or 0) / r['steps']:.3f} ms/step, "
                       f"CPU use {r['cpu_use_percent']} %, others busy {r['busy_cores_before'] or 0:.2f} cores)",
                       flush=True)
@@ -421,12 +435,16 @@ def main() -> int:
     # ---- summary per case
     summary = {}
     for case in cases:
-        rs = [r for r in runs if r["case"] == case["name"]]
+        every_run = [r for r in runs if r["case"] == case["name"]]
+        clean = [r for r in every_run if not r["disturbed"]]
+        rs = clean if len(clean) >= 2 else every_run
         th = rs[-1].get("thermo", {})
         s = {"np": case["np"], "couple": case["couple"], "every": case["every"] if case["couple"] else None,
              "atoms": rs[-1]["atoms"], "runs": len(rs),
              "step_ms": 1e3 * med([r["step_s"] for r in rs]),
-             "step_ms_all": [1e3 * r["step_s"] for r in rs],
+             "step_ms_all": [1e3 * r["step_s"] for r in every_run],
+             "disturbed": [r["disturbed"] for r in every_run],
+             "step_ms_used": [1e3 * r["step_s"] for r in rs],
              "pair_ms": 1e3 * med([(r["sections"].get("Pair") or 0) / r["steps"] for r in rs]),
              "modify_ms": 1e3 * med([(r["sections"].get("Modify") or 0) / r["steps"] for r in rs]),
              "modify_share": med([(r["sections"].get("Modify") or 0) / r["loop_time"] for r in rs]),
@@ -446,9 +464,11 @@ def main() -> int:
         base = summary[f"np{case['np']}_lammps"]
         s["overhead"] = s["step_ms"] / base["step_ms"] - 1.0
         # paired by repetition: the two runs of one repetition were close in time
-        pairs = [c["step_s"] / b["step_s"] - 1.0 for c in runs if c["case"] == case["name"]
+        pairs = [(c["step_s"] / b["step_s"] - 1.0, c["disturbed"] or b["disturbed"])
+                 for c in runs if c["case"] == case["name"]
                  for b in runs if b["case"] == f"np{case['np']}_lammps" and b["rep"] == c["rep"]]
-        s["overhead_paired"] = pairs
+        s["overhead_paired"] = [p for p, _ in pairs]
+        s["overhead_paired_disturbed"] = [d for _, d in pairs]
         s["overhead_fastest"] = min(s["step_ms_all"]) / min(base["step_ms_all"]) - 1.0
         s["fix_ms_per_step"] = s["modify_ms"] - base["modify_ms"]
         s["fix_ms_per_exchange"] = s["fix_ms_per_step"] * case["every"]
@@ -483,11 +503,13 @@ def main() -> int:
         f"{100 * TARGET:.0f} % with hybrid grains <= 20 %. Made by `{command}`. The machine is shared: each "
         f"run waited (up to {args.quiet_wait:.0f} s) for other processes to use less than 0.3 cores; they used "
         f"{min(busy):.2f}-{max(busy):.2f} cores just before the runs (1-minute load average "
-        f"{min(loads):.2f}-{max(loads):.2f}), steal {max(steal):.1f} % at most. {build_note}", "",
+        f"{min(loads):.2f}-{max(loads):.2f}), steal {max(steal):.1f} % at most. Runs during which other processes "
+        f"kept more than {DISTURBED} cores busy on average are marked * and left out of the medians (unless fewer "
+        f"than 2 runs of the case remain); {sum(r['disturbed'] for r in runs)} of {len(runs)} were. {build_note}", "",
         "| case | grains in LAMMPS | coupled grains | MPM points | MPM substeps per exchange | ms per step, median "
-        "(runs) | overhead, median (paired by repetition) | Pair ms/step | contacts | Modify ms/step (share of the "
-        "step) | fix cost per exchange | LAMMPS CPU use |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+        "(runs) | overhead, median (paired by repetition) | Pair ms/step | contacts | Pair ns per contact | Modify "
+        "ms/step (share of the step) | fix cost per exchange | LAMMPS CPU use |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     verdicts = []
     for case in cases:
         s = summary[case["name"]]
@@ -497,7 +519,8 @@ def main() -> int:
             label = f"coupled, every {case['every']}{ranks}"
             cg = f"{s['coupled_grains']} ({100 * s['coupled_fraction']:.1f} %)"
             pts, sub = str(s["points"]), f"{s['substeps_per_exchange']:.0f}"
-            paired = ", ".join(f"{100 * p:+.0f}" for p in s["overhead_paired"])
+            paired = ", ".join(f"{100 * p:+.0f}{'*' if d else ''}"
+                               for p, d in zip(s["overhead_paired"], s["overhead_paired_disturbed"]))
             ovh = f"**{100 * s['overhead']:+.1f} %** ({paired} %; fastest runs {100 * s['overhead_fastest']:+.1f} %)"
             fix = f"{s['fix_ms_per_exchange']:.3f} ms"
             factor = s["overhead"] / TARGET
@@ -509,9 +532,10 @@ def main() -> int:
             cg, pts, sub, ovh, fix = "-", "-", "-", "-", "-"
             if not case["trim"]:
                 ovh = f"({100 * (s['step_ms'] / base['step_ms'] - 1):+.1f} % vs. the same grains)"
-        runs_ms = ", ".join(f"{v:.2f}" for v in s["step_ms_all"])
+        runs_ms = ", ".join(f"{v:.2f}{'*' if d else ''}" for v, d in zip(s["step_ms_all"], s["disturbed"]))
         lines.append(f"| {label} | {s['atoms']} | {cg} | {pts} | {sub} | {s['step_ms']:.3f} ({runs_ms}) | {ovh} | "
                      f"{s['pair_ms']:.3f} | {s['contacts_mean'] or 0:.0f} | "
+                     f"{1e6 * s['pair_ms'] / s['contacts_mean'] if s['contacts_mean'] else 0:.1f} | "
                      f"{s['modify_ms']:.3f} ({100 * s['modify_share']:.0f} %) | {fix} | "
                      f"{s['cpu_use_percent']:.0f} % |")
     lines += ["", f"Target <= {100 * TARGET:.0f} %: " + "; ".join(verdicts) + "."]
@@ -520,7 +544,7 @@ def main() -> int:
               "the MPM process); the fix cost per exchange is the coupled minus the uncoupled Modify time per step, "
               "times the exchange interval. 'LAMMPS CPU use' is LAMMPS's own figure (CPU time over wall time): "
               "below 100 % the rank slept (waiting) or was descheduled. 'contacts' are the touching grain pairs "
-              "(mean over the thermo steps of the timed run, median over the runs): the pair style's cost follows "
+              "(mean over 11 thermo steps of the timed run, median over the runs): the pair style's cost follows "
               "them, and they differ a little between the cases (the coupled grains move with the continuum). "
               "The whole-bed row is the DEM run the "
               "continuum replaces; its 'overhead' column is its cost relative to the uncoupled row."]

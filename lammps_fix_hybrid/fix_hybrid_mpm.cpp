@@ -27,6 +27,7 @@
 #include "math_const.h"
 #include "memory.h"
 #include "modify.h"
+#include "output.h"
 #include "region.h"
 #include "update.h"
 #include "utils.h"
@@ -451,10 +452,35 @@ coupler::GrainTransfer<3> &FixHybridMPM::transfer<3>()
   return *transfer3;
 }
 
+/* ----------------------------------------------------------------------
+   time of the next exchange if it is certain now, else -1: the MPM process
+   then advances to it while LAMMPS computes its steps. Not certain: the run
+   ends first (unless the end-of-run output frame is an exchange), or a
+   restart file is written before it (the MPM state must then be that of
+   this exchange)
+------------------------------------------------------------------------- */
+
+double FixHybridMPM::next_exchange_time(bool force_output) const
+{
+  const bigint now = update->ntimestep, next = now + every;
+  if (force_output) return -1.0;
+  if (output->restart_flag && output->next_restart >= now && output->next_restart < next) return -1.0;
+  if (next <= update->laststep) return dem_time(next);
+  if (settings->output_every > 0 && update->laststep > now) return dem_time(update->laststep);    // end-of-run frame
+  return -1.0;
+}
+
 double FixHybridMPM::dem_time() const
 {
-  if (clock_step < 0) return update->atime + (update->ntimestep - update->atimestep) * update->dt;
-  return clock_time + (update->ntimestep - clock_step) * clock_dt;
+  return dem_time(update->ntimestep);
+}
+
+// the same expression for every step, so a time announced in advance is the same bits
+// as the time of that step when it comes
+double FixHybridMPM::dem_time(bigint step) const
+{
+  if (clock_step < 0) return update->atime + (step - update->atimestep) * update->dt;
+  return clock_time + (step - clock_step) * clock_dt;
 }
 
 int FixHybridMPM::zone_of(const double *x) const
@@ -680,6 +706,7 @@ void FixHybridMPM::exchange(bool force_output)
       h.kind = coupler::kStepCouple;
       h.output = output_frame ? 1 : 0;
       h.n_grains = n_coupled;
+      h.next_time = next_exchange_time(force_output);
       link->send_struct(0, coupler::kTagStep, h, "the step header" + at_step);
     }
     link->send_array(0, coupler::kTagNodes, records, "the grain node sums" + at_step);
@@ -691,13 +718,14 @@ void FixHybridMPM::exchange(bool force_output)
         throw coupler::PeerError(fmt::format("protocol error: {} node velocities for {} nodes", updates.size(),
                                              records.size()));
       apply_updates<D>(view, updates, index);
-      if (output_frame) send_grains("the grains of the output frame" + at_step);
       m = link->receive(0, {coupler::kTagStepAck}, "the acknowledgement" + at_step);
     }
     ack = m.as<coupler::StepAck>();
     if (ack.status != 0)
       status = 2, what = "the MPM process reported an error at step " + std::to_string(update->ntimestep) + ": " +
                          coupler::get_text(ack.message);
+    else if (output_frame)
+      send_grains("the grains of the output frame" + at_step);
   } catch (const coupler::PeerError &e) {
     status = 1;
     what = e.what();
@@ -816,7 +844,7 @@ void FixHybridMPM::fail(const char *file, int line, int status, const char *what
 void FixHybridMPM::post_run()
 {
   // the state at the end of every run is in the output file (an exchange at this step)
-  if (link && settings->output_every > 0 && last_output_step != update->ntimestep && converted) {
+  if (link && settings->output_every > 0 && last_output_step != update->ntimestep) {
     if (domain->dimension == 2) exchange<2>(true);
     else exchange<3>(true);
   }

@@ -124,6 +124,8 @@ class FixHybridMPM : public Fix {
   void compute_zones();
   int zone_of(const double *x) const;
   double dem_time() const;
+  double dem_time(bigint step) const;
+  double next_exchange_time(bool force_output) const;
   void cell_centre(std::size_t c, double *centre) const;
   void grain_defaults();
   void fill_thermo_vector();

@@ -116,6 +116,7 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
   CoupledContinuum<D> continuum(hello);
   const double idle = hello.idle_timeout;
   long steps = 0;
+  std::string deferred_error;  // a failure after the last acknowledgement, reported at the next exchange
   for (;;) {
     const coupler::Message m = link.receive(
         0, {coupler::kTagStep, coupler::kTagFinish, coupler::kTagAbort},
@@ -146,13 +147,11 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
         const std::string path = coupler::get_text(request.path);
         coupler::StepAck ack;
         try {
-          if (h.kind == coupler::kStepSave) {
-            continuum.save(path, h.step, request.exchanges);
-            ack = continuum.finish_step(h.step);  // no substep is open between exchanges: only the totals
-          } else {
-            continuum.load(path);
-            ack = continuum.finish_step(h.step);
-          }
+          if (continuum.step_open())  // LAMMPS announces no next exchange before a restart file
+            throw UserError("internal: a state request while a substep is open");
+          if (h.kind == coupler::kStepSave) continuum.save(path, h.step, request.exchanges);
+          else continuum.load(path);
+          ack = continuum.totals(h.step);
         } catch (const UserError& e) {
           ack = error_ack(h.step, e.what());
         }
@@ -166,20 +165,21 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
         continue;
       }
       const auto nodes = receive_from_all<coupler::NodeRecord>(link, coupler::kTagNodes, "the grain node sums" + at);
+      // The exchange's critical path for LAMMPS ends with the acknowledgement; the rest of the
+      // continuum's work (G2P, output, the substeps to the next exchange) overlaps LAMMPS's
+      // next steps. Its errors are reported at the next exchange.
       coupler::StepAck ack;
-      try {
-        continuum.advance_to(h.time);
-        const auto replies = continuum.agree(nodes);
-        for (int r = 0; r < link.remote_size(); ++r)
-          link.send_array(r, coupler::kTagNodeReply, replies[r], "the node velocities" + at);
-        std::vector<std::vector<coupler::GrainRecord>> grains;
-        if (h.output) grains = receive_from_all<coupler::GrainRecord>(link, coupler::kTagGrains, "the grains" + at);
-        ack = continuum.finish_step(h.step);
-        if (h.output) continuum.write_frame(grains, h.step);
-      } catch (const UserError& e) {
-        ack = error_ack(h.step, std::string("the continuum failed") + at + ": " + e.what());
-      } catch (const std::exception& e) {
-        ack = error_ack(h.step, std::string("the continuum's output failed") + at + ": " + e.what());
+      if (!deferred_error.empty()) ack = error_ack(h.step, deferred_error);
+      else {
+        try {
+          continuum.advance_to(h.time);
+          const auto replies = continuum.agree(nodes);
+          for (int r = 0; r < link.remote_size(); ++r)
+            link.send_array(r, coupler::kTagNodeReply, replies[r], "the node velocities" + at);
+          ack = continuum.grid_totals(h.step);
+        } catch (const UserError& e) {
+          ack = error_ack(h.step, std::string("the continuum failed") + at + ": " + e.what());
+        }
       }
       ack_all(link, ack, "the acknowledgement of step " + std::to_string(h.step));
       if (ack.status != 0) {
@@ -188,8 +188,23 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
       }
       link.count_exchange();
       ++steps;
+      std::vector<std::vector<coupler::GrainRecord>> grains;
+      if (h.output) grains = receive_from_all<coupler::GrainRecord>(link, coupler::kTagGrains, "the grains" + at);
+      try {
+        continuum.complete_step();
+        if (h.output) continuum.write_frame(grains, h.step);
+        if (h.next_time > h.time) continuum.advance_to(h.next_time);
+      } catch (const UserError& e) {
+        deferred_error = std::string("the continuum failed after step ") + std::to_string(h.step) + ": " + e.what();
+      } catch (const std::exception& e) {
+        deferred_error = std::string("the continuum's output failed") + at + ": " + e.what();
+      }
     } else if (m.tag == coupler::kTagFinish) {
       const auto f = m.as<coupler::Finish>();
+      if (!deferred_error.empty()) {
+        error_line(deferred_error);
+        return 2;
+      }
       say(opt, "coupled run finished at LAMMPS step " + std::to_string(f.step) + " after " + std::to_string(steps) +
                    " exchange(s); " + std::to_string(continuum.solver().points().size()) + " material points");
       link.mark(coupler::Link::State::kFinished);

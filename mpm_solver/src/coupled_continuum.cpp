@@ -87,6 +87,7 @@ CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
   dem_mass_.assign(grid.num_nodes(), 0.0);
   dem_momentum_.assign(grid.num_nodes(), Vec<D>::Zero());
   support_force_.assign(grid.num_nodes(), Vec<D>::Zero());
+  support_mass_.assign(grid.num_nodes(), 0.0);
   const std::string dir = coupler::get_text(hello.continuum.output_path);
   if (hello.continuum.output_every > 0 && !dir.empty()) {
     Scene scene = solver_.scene();
@@ -133,11 +134,19 @@ coupler::StepAck CoupledContinuum<D>::convert(double time, std::vector<std::int8
 
 template <int D>
 void CoupledContinuum<D>::advance_to(double time) {
+  const double tiny = 1e-12 * std::max(1.0, std::abs(time));
+  if (pending_dt_ >= 0) {
+    if (std::abs(time - open_time_) <= tiny) return;
+    throw UserError("internal: the continuum advanced to t = " + std::to_string(open_time_) +
+                    " s for the next exchange, which came at t = " + std::to_string(time) + " s");
+  }
   const double interval = time - time_;
   if (interval < -1e-12 * std::max(1.0, std::abs(time)))
     throw UserError("the DEM time went backwards (from " + std::to_string(time_) + " s to " + std::to_string(time) +
                     " s): a coupled run cannot reset its time step counter or time");
-  const double span = std::max(0.0, interval);
+  // Times from the DEM side agree to round-off only: an interval of a few ulps is none (the
+  // support force divides by it)
+  const double span = interval > tiny ? interval : 0.0;
   const double stable = solver_.stable_dt();
   int substeps = 1;
   if (std::isfinite(stable) && stable > 0) substeps = std::max(1, static_cast<int>(std::ceil(span / stable * (1 - 1e-12))));
@@ -149,6 +158,7 @@ void CoupledContinuum<D>::advance_to(double time) {
   solver_.p2g(h);
   solver_.grid_update(h);
   pending_dt_ = h;
+  open_time_ = time;
   substeps_ = substeps;
   interval_ = span;
 }
@@ -179,8 +189,12 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   // grains resting on the continuum are held between exchanges, not only at them.
   const double gain = hello_.continuum.support_gain;
   std::vector<Vec<D>> old_force(touched_.size());
-  for (std::size_t t = 0; t < touched_.size(); ++t) old_force[t] = support_force_[touched_[t]];
-  for (std::size_t k : support_nodes_) support_force_[k].setZero();
+  std::vector<double> old_mass(touched_.size());
+  for (std::size_t t = 0; t < touched_.size(); ++t) {
+    old_force[t] = support_force_[touched_[t]];
+    old_mass[t] = support_mass_[touched_[t]];
+  }
+  for (std::size_t k : support_nodes_) support_force_[k].setZero(), support_mass_[k] = 0.0;
   support_nodes_.clear();
   for (std::size_t t = 0; t < touched_.size(); ++t) {
     const std::size_t k = touched_[t];
@@ -196,9 +210,14 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       grid.momentum[k] = common;
       ++shared_nodes_;
       if (gain > 0) {
-        Vec<D> force = (1.0 - kSupportLeak) * old_force[t];
+        // A force set when the node held more mass would accelerate what is left there
+        // beyond anything the agreement asked for: scale it with the node's reduced mass.
+        const double reduced = m_dem * m_mpm / (m_dem + m_mpm);
+        const double carry = old_mass[t] > 0 ? std::min(1.0, reduced / old_mass[t]) : 0.0;
+        Vec<D> force = ((1.0 - kSupportLeak) * carry) * old_force[t];
         if (interval_ > 0) force += gain * m_dem * (common - v_dem) / interval_;
         support_force_[k] = force;
+        support_mass_[k] = reduced;
         support_nodes_.push_back(k);
         support[t] = force / m_dem;
       }
@@ -251,15 +270,41 @@ void CoupledContinuum<D>::apply_support_reaction() {
 }
 
 template <int D>
-coupler::StepAck CoupledContinuum<D>::finish_step(std::int64_t step) {
-  if (pending_dt_ >= 0) {
-    apply_support_reaction();
-    solver_.g2p(pending_dt_);
-    solver_.advance_clock(pending_dt_);
-    time_ += pending_dt_ * substeps_;
-  }
+void CoupledContinuum<D>::complete_step() {
+  if (pending_dt_ < 0) return;
+  apply_support_reaction();
+  solver_.g2p(pending_dt_);
+  solver_.advance_clock(pending_dt_);
+  time_ = open_time_;
   pending_dt_ = -1;
-  return totals(step);
+}
+
+template <int D>
+coupler::StepAck CoupledContinuum<D>::grid_totals(std::int64_t step) const {
+  coupler::StepAck ack;
+  ack.step = step;
+  ack.substeps = substeps_;
+  ack.points = static_cast<std::int64_t>(solver_.points().size());
+  ack.shared_nodes = shared_nodes_;
+  ack.mismatch = mismatch_;
+  ack.mpm_dt = pending_dt_;
+  const Grid<D>& grid = solver_.grid();
+  Vec<D> p = Vec<D>::Zero();
+  coupler::Spin<D> L = coupler::Spin<D>::Zero();
+  for (std::size_t k = 0; k < grid.num_nodes(); ++k) {
+    const double m = grid.mass[k];
+    if (m <= 0) continue;
+    const Vec<D>& v = grid.momentum[k];  // a velocity after the grid update
+    ack.mass += m;
+    p += m * v;
+    L += coupler::cross<D>(grid.node_position(grid.node_of(k)), Vec<D>(m * v));
+    ack.kinetic_energy += 0.5 * m * v.squaredNorm();
+  }
+  for (int a = 0; a < D; ++a) ack.momentum[a] = p[a];
+  if constexpr (D == 2) ack.angular[2] = L[0];
+  else
+    for (int a = 0; a < 3; ++a) ack.angular[a] = L[a];
+  return ack;
 }
 
 template <int D>
@@ -295,6 +340,7 @@ void CoupledContinuum<D>::save(const std::string& path, std::int64_t dem_step, s
   for (std::size_t k : support_nodes_) {
     state.support_nodes.push_back(k);
     state.support_forces.push_back(support_force_[k]);
+    state.support_masses.push_back(support_mass_[k]);
   }
   state.time = time_;
   state.solver_time = solver_.time();
@@ -319,12 +365,13 @@ void CoupledContinuum<D>::load(const std::string& path) {
     throw UserError("the MPM state " + path + " was saved with another box, cell size or model than this run's "
                     "fix hybrid/mpm line; restart with the same box, cell and model");
   zones_ = std::move(state.zones);
-  for (std::size_t k : support_nodes_) support_force_[k].setZero();
+  for (std::size_t k : support_nodes_) support_force_[k].setZero(), support_mass_[k] = 0.0;
   support_nodes_.clear();
   for (std::size_t i = 0; i < state.support_nodes.size(); ++i) {
     const std::size_t k = state.support_nodes[i];
     if (k >= support_force_.size()) throw UserError("the MPM state " + path + " names a node outside the grid");
     support_force_[k] = state.support_forces[i];
+    support_mass_[k] = state.support_masses[i];
     support_nodes_.push_back(k);
   }
   time_ = state.time;

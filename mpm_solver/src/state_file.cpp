@@ -15,6 +15,7 @@
 //   /zones             int8, one per grid cell
 //   /support_nodes     uint64, nodes with a support force
 //   /support_forces    support_nodes x D
+//   /support_masses    reduced mass of each support node when its force was set
 #include "mpm/state_file.hpp"
 
 #include <filesystem>
@@ -59,9 +60,10 @@ std::string inconsistency(const ContinuumState<D>& s) {
       why = "points field '" + std::string(name) + "' has " + std::to_string(field.size()) + " values for " +
             std::to_string(n) + " points";
   });
-  if (why.empty() && s.support_forces.size() != s.support_nodes.size())
-    why = std::to_string(s.support_forces.size()) + " support forces for " + std::to_string(s.support_nodes.size()) +
-          " support nodes";
+  if (why.empty() && (s.support_forces.size() != s.support_nodes.size() ||
+                      s.support_masses.size() != s.support_nodes.size()))
+    why = std::to_string(s.support_forces.size()) + " support forces and " + std::to_string(s.support_masses.size()) +
+          " support masses for " + std::to_string(s.support_nodes.size()) + " support nodes";
   return why;
 }
 
@@ -218,6 +220,7 @@ void save_state(const std::string& path, const ContinuumState<D>& s) {
       write_array(h5, root, "zones", s.zones);
       write_array(h5, root, "support_nodes", s.support_nodes);
       write_array(h5, root, "support_forces", s.support_forces);
+      write_array(h5, root, "support_masses", s.support_masses);
     }
     h5.ok(H5Fclose(file.release()), "close the file", "");
   });
@@ -268,6 +271,7 @@ ContinuumState<D> load_state(const std::string& path) {
     read_array(h5, top, "zones", s.zones);
     read_array(h5, top, "support_nodes", s.support_nodes);
     read_array(h5, top, "support_forces", s.support_forces);
+    read_array(h5, top, "support_masses", s.support_masses);
     if (const std::string why = inconsistency(s); !why.empty())
       throw UserError("the MPM state file '" + path + "' is inconsistent: " + why);
     return s;

@@ -70,6 +70,7 @@ ContinuumState<D> random_state(int n_points, int n_cells, int n_support, unsigne
   for (int k = 0; k < n_support; ++k) {
     s.support_nodes.push_back(rng());
     s.support_forces.push_back(vec());
+    s.support_masses.push_back(u(rng));
   }
   s.time = u(rng);
   s.solver_time = u(rng);
@@ -104,6 +105,7 @@ void expect_identical(const ContinuumState<D>& a, const ContinuumState<D>& b) {
   EXPECT_TRUE(same_bits(a.zones, b.zones));
   EXPECT_TRUE(same_bits(a.support_nodes, b.support_nodes));
   EXPECT_TRUE(same_bits(a.support_forces, b.support_forces));
+  EXPECT_TRUE(same_bits(a.support_masses, b.support_masses));
   EXPECT_EQ(std::memcmp(&a.time, &b.time, sizeof a.time), 0);
   EXPECT_EQ(std::memcmp(&a.solver_time, &b.solver_time, sizeof a.solver_time), 0);
   EXPECT_EQ(a.solver_steps, b.solver_steps);

@@ -151,6 +151,9 @@ struct StepHeader {
   std::int32_t kind = kStepCouple;
   std::int32_t output = 0;           ///< 1: GrainRecords follow from every DEM rank (an output frame)
   std::int64_t n_grains = 0;         ///< coupled grains over all DEM ranks (for the log)
+  /// DEM time of the next exchange if it is certain (same run, no restart file before it),
+  /// else -1: the MPM process may advance to it while LAMMPS computes its steps.
+  double next_time = -1;
 };
 
 /// MPM -> every DEM rank: the end of an exchange, with the continuum's totals.

@@ -29,13 +29,20 @@ class CoupledContinuum {
                            const std::vector<std::vector<coupler::CellMoments<D>>>& per_rank);
 
   /// Advances the continuum to `time` in stable substeps and stops inside the last one,
-  /// after its grid update: the grid then holds the node velocities at `time`.
+  /// after its grid update: the grid then holds the node velocities at `time`. Does nothing
+  /// if it already stands there (advanced ahead while LAMMPS computed its steps).
   void advance_to(double time);
   /// The velocity agreement on the nodes the DEM ranks sent (NodeRecord lists, one per
-  /// rank); returns the answers in the same order. Call between advance_to and finish_step.
+  /// rank); returns the answers in the same order. Call between advance_to and complete_step.
   std::vector<std::vector<coupler::NodeUpdate>> agree(const std::vector<std::vector<coupler::NodeRecord>>& per_rank);
-  /// Completes the substep (G2P) and returns the acknowledgement with the continuum totals.
-  coupler::StepAck finish_step(std::int64_t step);
+  /// The continuum's totals from the agreed grid: what the points hold after complete_step
+  /// (APIC's G2P keeps mass, momentum and angular momentum), known before it runs.
+  coupler::StepAck grid_totals(std::int64_t step) const;
+  /// Completes the open substep (G2P with the agreed grid velocities).
+  void complete_step();
+  /// The continuum's totals from its points (no substep may be open).
+  coupler::StepAck totals(std::int64_t step) const;
+  bool step_open() const { return pending_dt_ >= 0; }
 
   /// Saves the exact state to `path` (HDF5, mpm/state_file.hpp); throws UserError.
   void save(const std::string& path, std::int64_t dem_step, std::int64_t exchanges) const;
@@ -49,7 +56,6 @@ class CoupledContinuum {
   double time() const { return time_; }
 
  private:
-  coupler::StepAck totals(std::int64_t step) const;
   void apply_support_reaction();
 
   coupler::Hello hello_;
@@ -57,6 +63,7 @@ class CoupledContinuum {
   std::vector<std::int8_t> zones_;
   double time_ = 0;                   ///< DEM time of the continuum's state
   double pending_dt_ = -1;            ///< substep left open by advance_to (< 0: none)
+  double open_time_ = 0;              ///< the time advance_to stopped at
   int substeps_ = 0;
   double mismatch_ = 0;
   std::int64_t shared_nodes_ = 0;
@@ -66,6 +73,7 @@ class CoupledContinuum {
   double interval_ = 0;               ///< time since the previous exchange, s
   std::vector<Vec<D>> support_force_; ///< force of the continuum on the grains per node until the next exchange
   std::vector<std::size_t> support_nodes_;  ///< nodes where support_force_ is set
+  std::vector<double> support_mass_;  ///< reduced mass m_dem m_mpm / (m_dem + m_mpm) when the force was set
   std::unique_ptr<SnapshotWriter<D>> writer_;
 };
 

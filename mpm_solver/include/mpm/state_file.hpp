@@ -17,6 +17,7 @@ struct ContinuumState {
   std::vector<std::int8_t> zones;            ///< one per grid cell
   std::vector<std::uint64_t> support_nodes;  ///< nodes with a support force
   std::vector<Vec<D>> support_forces;        ///< same length as support_nodes
+  std::vector<double> support_masses;        ///< reduced mass each support force was set with, same length
   double time = 0;                           ///< DEM time of the continuum's state, s
   double solver_time = 0;                    ///< the MPM solver's own clock, s
   long solver_steps = 0;                     ///< MPM steps taken so far
