@@ -9,11 +9,12 @@ would turn into material points and puts the floor under the lowest remaining ro
 (`-var couple 1`, tools/hybrid_launch.py, one MPM process) they become points at step 1. Each
 run has a warm-up run (the conversion, the bed taking its weight) and then the timed run, whose
 "Loop time" and timing breakdown are read from the LAMMPS log. The cases run interleaved, the
-whole set repeated; the tables give medians.
+whole set repeated; the tables give medians. With --profile, one more run per case is recorded
+with perf to split the fix's cost into its own DEM-side work and the wait for the MPM process.
 
 Target (project brief): overhead <= 5 % of a LAMMPS step when hybrid grains are <= 20 %.
 
-Usage: bench/coupling_overhead.py [--quick] [--reps 3] [--every 1 10] [--np 1] [--profile]
+Usage: bench/coupling_overhead.py [--quick] [--reps N] [--every 1 10] [--np 1] [--profile] [--keep DIR]
 """
 from __future__ import annotations
 
@@ -360,12 +361,12 @@ def med(values):
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--quick", action="store_true", help="smaller bed (about 10,000 grains in LAMMPS) and fewer steps")
     ap.add_argument("--reps", type=int, help="repetitions of the interleaved set (default 5, --quick 3)")
-    ap.add_argument("--quiet-wait", type=float, default=30.0,
+    ap.add_argument("--quiet-wait", type=float, default=60.0,
                     help="before each run wait at most this long (s) for other processes to use less than 0.3 "
-                         "cores (the machine is shared; default 30, 0 = do not wait)")
+                         "cores (the machine is shared; default 60, 0 = do not wait)")
     ap.add_argument("--every", type=int, nargs="+", default=[1, 10], help="exchange intervals (default 1 10)")
     ap.add_argument("--np", type=int, nargs="+", default=[1], help="LAMMPS ranks (default 1; the MPM process is extra)")
     ap.add_argument("--nsteps", type=int, help="timed steps per run (default 2000, --quick 500)")
@@ -409,10 +410,9 @@ def main() -> int:
                 r["rep"] = rep
                 runs.append(r)
                 print(f"rep {rep} {case['name']:24s} {1e3 * r['step_s']:8.3f} ms/step{'*' if r['disturbed'] else ' '} "
-                      f"(others {r['others_cores']:.2f} cores) "
                       f"(Modify {1e3 * (r['sections'].get('Modify') or 0) / r['steps']:.3f} ms/step, "
-                      f"CPU use {r['cpu_use_percent']} %, others busy {r['busy_cores_before'] or 0:.2f} cores)",
-                      flush=True)
+                      f"CPU use {r['cpu_use_percent']} %; other processes: {r['others_cores']:.2f} cores during "
+                      f"the run, {r['busy_cores_before'] or 0:.2f} before)", flush=True)
         profiles = []
         if args.profile:
             if shutil.which("perf") is None:

@@ -470,6 +470,16 @@ double FixHybridMPM::next_exchange_time(bool force_output) const
   return -1.0;
 }
 
+coupler::StepHeader FixHybridMPM::step_header(int kind) const
+{
+  coupler::StepHeader h;
+  h.step = update->ntimestep;
+  h.time = dem_time();
+  h.dt = update->dt;
+  h.kind = kind;
+  return h;
+}
+
 double FixHybridMPM::dem_time() const
 {
   return dem_time(update->ntimestep);
@@ -591,11 +601,7 @@ void FixHybridMPM::convert()
   coupler::StepAck ack;
   try {
     if (comm->me == 0) {
-      coupler::StepHeader h;
-      h.step = update->ntimestep;
-      h.time = dem_time();
-      h.dt = update->dt;
-      h.kind = coupler::kStepConvert;
+      coupler::StepHeader h = step_header(coupler::kStepConvert);
       link->send_struct(0, coupler::kTagStep, h, "the conversion header");
       link->send_array(0, coupler::kTagZones, zones, "the zone map");
     }
@@ -699,11 +705,7 @@ void FixHybridMPM::exchange(bool force_output)
   const std::string at_step = " of step " + std::to_string(update->ntimestep);
   try {
     if (comm->me == 0) {
-      coupler::StepHeader h;
-      h.step = update->ntimestep;
-      h.time = dem_time();
-      h.dt = update->dt;
-      h.kind = coupler::kStepCouple;
+      coupler::StepHeader h = step_header(coupler::kStepCouple);
       h.output = output_frame ? 1 : 0;
       h.n_grains = n_coupled;
       h.next_time = next_exchange_time(force_output);
@@ -981,11 +983,7 @@ void FixHybridMPM::state_request(int kind, const std::string &path)
   const char *verb = kind == coupler::kStepSave ? "saving" : "loading";
   try {
     if (comm->me == 0) {
-      coupler::StepHeader h;
-      h.step = update->ntimestep;
-      h.time = dem_time();
-      h.dt = update->dt;
-      h.kind = kind;
+      coupler::StepHeader h = step_header(kind);
       coupler::StateRequest request;
       if (path.size() >= sizeof(request.path))
         throw coupler::PeerError(fmt::format("the MPM state path {} is too long", path));

@@ -23,6 +23,7 @@ namespace coupler {
 class Link;
 struct ContinuumSettings;
 struct StepAck;
+struct StepHeader;
 struct NodeUpdate;
 struct GrainView;
 template <int D> struct GridGeometry;
@@ -124,6 +125,7 @@ class FixHybridMPM : public Fix {
   void compute_zones();
   int zone_of(const double *x) const;
   double dem_time() const;
+  coupler::StepHeader step_header(int kind) const;
   double dem_time(bigint step) const;
   double next_exchange_time(bool force_output) const;
   void cell_centre(std::size_t c, double *centre) const;

@@ -71,6 +71,8 @@ class DemResult:
     length: float                  # domain length (end wall), m
     wall_time: float               # s, this run (collapse, plus preparation if not cached)
     prepared: bool                 # True if the settled column was built in this run
+    steps: int = 0                 # LAMMPS steps of the collapse runs
+    loop_time: float = 0.0         # s, LAMMPS's summed loop times of those runs
     published: tuple = ()
     profile: list = field(default_factory=list)   # [(x_centre, surface height)] per bin, connected deposit only
     log: str = ""
@@ -270,7 +272,12 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
     if not m:
         raise RuntimeError(f"no 'DEM collapse end' line in {out / 'log.lammps'}")
     length = float(re.search(r"^DEM domain length ([-+.\deE]+) m", log, re.M).group(1))
+    # LAMMPS's loop times of the collapse stage (after the last "collapse_stage" label)
+    stage = log[log.rfind("label           collapse_stage"):]
+    loops = re.findall(r"^Loop time of (\S+) on \d+ procs for (\d+) steps", stage, re.M)
+    steps, loop_time = sum(int(n) for _, n in loops), sum(float(t) for t, _ in loops)
     return DemResult(aspect=aspect, width=width, d=d, wall_time=wall, prepared=prep, length=length,
+                     steps=steps, loop_time=loop_time,
                      end_time=float(m.group(1)), ke_per_grain=float(m.group(2)), ke_rest=float(m.group(3)),
                      published=published_runout_range(aspect), log="\n".join(lines), **res)
 

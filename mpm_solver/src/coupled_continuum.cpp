@@ -280,56 +280,55 @@ void CoupledContinuum<D>::complete_step() {
 }
 
 template <int D>
+coupler::StepAck CoupledContinuum<D>::ack(std::int64_t step, double mass, const Vec<D>& momentum,
+                                         const coupler::Spin<D>& angular, double kinetic_energy) const {
+  coupler::StepAck a;
+  a.step = step;
+  a.substeps = substeps_;
+  a.points = static_cast<std::int64_t>(solver_.points().size());
+  a.shared_nodes = shared_nodes_;
+  a.mismatch = mismatch_;
+  a.mpm_dt = pending_dt_ >= 0 ? pending_dt_ : 0.0;
+  a.mass = mass;
+  a.kinetic_energy = kinetic_energy;
+  for (int d = 0; d < D; ++d) a.momentum[d] = momentum[d];
+  if constexpr (D == 2) a.angular[2] = angular[0];
+  else
+    for (int d = 0; d < 3; ++d) a.angular[d] = angular[d];
+  return a;
+}
+
+template <int D>
 coupler::StepAck CoupledContinuum<D>::grid_totals(std::int64_t step) const {
-  coupler::StepAck ack;
-  ack.step = step;
-  ack.substeps = substeps_;
-  ack.points = static_cast<std::int64_t>(solver_.points().size());
-  ack.shared_nodes = shared_nodes_;
-  ack.mismatch = mismatch_;
-  ack.mpm_dt = pending_dt_;
   const Grid<D>& grid = solver_.grid();
+  double mass = 0, ke = 0;
   Vec<D> p = Vec<D>::Zero();
   coupler::Spin<D> L = coupler::Spin<D>::Zero();
   for (std::size_t k = 0; k < grid.num_nodes(); ++k) {
     const double m = grid.mass[k];
     if (m <= 0) continue;
     const Vec<D>& v = grid.momentum[k];  // a velocity after the grid update
-    ack.mass += m;
+    mass += m;
     p += m * v;
     L += coupler::cross<D>(grid.node_position(grid.node_of(k)), Vec<D>(m * v));
-    ack.kinetic_energy += 0.5 * m * v.squaredNorm();
+    ke += 0.5 * m * v.squaredNorm();
   }
-  for (int a = 0; a < D; ++a) ack.momentum[a] = p[a];
-  if constexpr (D == 2) ack.angular[2] = L[0];
-  else
-    for (int a = 0; a < 3; ++a) ack.angular[a] = L[a];
-  return ack;
+  return ack(step, mass, p, L, ke);
 }
 
 template <int D>
 coupler::StepAck CoupledContinuum<D>::totals(std::int64_t step) const {
-  coupler::StepAck ack;
-  ack.step = step;
-  ack.substeps = substeps_;
   const auto& pts = solver_.points();
-  ack.points = static_cast<std::int64_t>(pts.size());
-  ack.shared_nodes = shared_nodes_;
-  ack.mismatch = mismatch_;
-  ack.mpm_dt = pending_dt_ >= 0 ? pending_dt_ : 0.0;
+  double mass = 0, ke = 0;
   Vec<D> p = Vec<D>::Zero();
   coupler::Spin<D> L = coupler::Spin<D>::Zero();
   for (std::size_t i = 0; i < pts.size(); ++i) {
-    ack.mass += pts.mass[i];
+    mass += pts.mass[i];
     p += pts.mass[i] * pts.v[i];
     L += coupler::point_angular_momentum<D>(pts.x[i], pts.v[i], pts.C[i], pts.mass[i], solver_.grid().dx);
-    ack.kinetic_energy += 0.5 * pts.mass[i] * pts.v[i].squaredNorm();
+    ke += 0.5 * pts.mass[i] * pts.v[i].squaredNorm();
   }
-  for (int a = 0; a < D; ++a) ack.momentum[a] = p[a];
-  if constexpr (D == 2) ack.angular[2] = L[0];
-  else
-    for (int a = 0; a < 3; ++a) ack.angular[a] = L[a];
-  return ack;
+  return ack(step, mass, p, L, ke);
 }
 
 template <int D>

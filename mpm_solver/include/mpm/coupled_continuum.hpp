@@ -57,6 +57,8 @@ class CoupledContinuum {
 
  private:
   void apply_support_reaction();
+  coupler::StepAck ack(std::int64_t step, double mass, const Vec<D>& momentum, const coupler::Spin<D>& angular,
+                       double kinetic_energy) const;
 
   coupler::Hello hello_;
   Solver<D> solver_;
