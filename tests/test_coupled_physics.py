@@ -282,3 +282,38 @@ def test_restart_continues_the_coupled_run(tmp_path, hybrid_programs):
     coupled_dv = np.abs(ga["vx"] - gb["vx"]).max() + np.abs(ga["vy"] - gb["vy"]).max()
     print(f"restart: largest velocity difference coupled {coupled_dv:.3g} m/s, LAMMPS alone {lammps_dv:.3g} m/s")
     assert coupled_dv <= 2 * lammps_dv + 1e-12
+
+
+@pytest.mark.parametrize("dim", ["2d", "3d"])
+def test_conversion_keeps_mass_momentum_and_angular_momentum_exactly(tmp_path, hybrid_programs, dim):
+    """Grains that do not touch (a lattice looser than their diameter), spinning and moving at
+    random, no gravity: LAMMPS conserves their totals exactly, so the totals just after the
+    conversion at step 1 (grains' carried mass plus the new points, before any exchange) equal
+    those at step 0 to round-off: mass, linear momentum and angular momentum (orbital plus spin
+    of the grains; APIC for the points)."""
+    deck_in, *_ = DECKS[dim]
+    text = deck_in.read_text()
+    text = text.replace("lattice         sq 0.002 ", "lattice         sq 0.0025 ")
+    text = text.replace("lattice         sc 0.004 ", "lattice         sc 0.005 ")
+    spin = "variable        wz atom 20*random(-1,1,${seed})\nset             type 1 omega 0 0 v_wz\n"
+    if dim == "3d":
+        spin = ("variable        wx atom 20*random(-1,1,${seed})\nvariable        wz atom 20*random(-1,1,${seed})\n"
+                "set             type 1 omega v_wx 0 v_wz\n")
+    text = text.replace("timestep        1.0e-5", spin + "timestep        1.0e-5")
+    text = re.sub(r"^thermo_style .*$", "thermo_style    custom step atoms f_couple[3] f_couple[8] f_couple[9] "
+                  "f_couple[10] f_couple[11] f_couple[12] f_couple[13] f_couple[14]", text, flags=re.M)
+    text = text.replace("thermo          10", "thermo          1")
+    deck = tmp_path / "deck.lmp"
+    deck.write_text(text)
+    log = run_deck(tmp_path, deck, 2, "-var", "nsteps", "2", "-var", "every", "10")
+    rows = thermo_rows(log)
+    before, after = rows[0], rows[1]
+    assert before["f_couple[3]"] == 0 and after["f_couple[3]"] > 0 and after["Step"] == 1
+    assert after["f_couple[8]"] == pytest.approx(before["f_couple[8]"], rel=1e-14)
+    mass = before["f_couple[8]"]
+    p_scale, l_scale = mass * 0.05, mass * (0.05 * 0.15 + 20 * 0.004 ** 2)
+    for k in (9, 10, 11):
+        assert abs(after[f"f_couple[{k}]"] - before[f"f_couple[{k}]"]) <= 1e-13 * p_scale, k
+    for k in (12, 13, 14):
+        assert abs(after[f"f_couple[{k}]"] - before[f"f_couple[{k}]"]) <= 1e-13 * l_scale, k
+    assert abs(before["f_couple[14]"]) > 1e-6 * l_scale  # there was angular momentum to keep
