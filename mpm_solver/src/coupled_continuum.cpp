@@ -88,6 +88,7 @@ CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
   dem_momentum_.assign(grid.num_nodes(), Vec<D>::Zero());
   support_force_.assign(grid.num_nodes(), Vec<D>::Zero());
   support_mass_.assign(grid.num_nodes(), 0.0);
+  touched_slot_.assign(grid.num_nodes(), -1);
   const std::string dir = coupler::get_text(hello.continuum.output_path);
   if (hello.continuum.output_every > 0 && !dir.empty()) {
     Scene scene = solver_.scene();
@@ -174,7 +175,10 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       if (r.node >= n_nodes)
         throw UserError("a DEM rank sent node " + std::to_string(r.node) + " outside the grid of " +
                         std::to_string(n_nodes) + " nodes");
-      if (dem_mass_[r.node] == 0.0) touched_.push_back(r.node);
+      if (touched_slot_[r.node] < 0) {
+        touched_slot_[r.node] = static_cast<std::int64_t>(touched_.size());
+        touched_.push_back(r.node);
+      }
       dem_mass_[r.node] += r.mass;
       dem_momentum_[r.node] += Eigen::Map<const Eigen::Vector3d>(r.momentum).head<D>();
     }
@@ -226,14 +230,12 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
     dem_momentum_[k] = common;
   }
   std::vector<std::vector<coupler::NodeUpdate>> replies(per_rank.size());
-  std::map<std::size_t, std::size_t> slot;  // node -> index in touched_
-  for (std::size_t t = 0; t < touched_.size(); ++t) slot[touched_[t]] = t;
   for (std::size_t r = 0; r < per_rank.size(); ++r) {
     replies[r].resize(per_rank[r].size());
     for (std::size_t i = 0; i < per_rank[r].size(); ++i) {
       const std::size_t k = per_rank[r][i].node;
       auto& u = replies[r][i];
-      const std::size_t t = slot[k];
+      const auto t = static_cast<std::size_t>(touched_slot_[k]);
       for (int a = 0; a < D; ++a) {
         u.velocity[a] = dem_momentum_[k][a];
         u.impulse_per_mass[a] = impulse_per_mass[t][a];
@@ -244,6 +246,7 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   for (std::size_t k : touched_) {
     dem_mass_[k] = 0.0;
     dem_momentum_[k].setZero();
+    touched_slot_[k] = -1;
   }
   touched_.clear();
   return replies;
@@ -304,7 +307,8 @@ coupler::StepAck CoupledContinuum<D>::grid_totals(std::int64_t step) const {
   double mass = 0, ke = 0;
   Vec<D> p = Vec<D>::Zero();
   coupler::Spin<D> L = coupler::Spin<D>::Zero();
-  for (std::size_t k = 0; k < grid.num_nodes(); ++k) {
+  const auto [first, last] = solver_.active_nodes();
+  for (std::size_t k = first; k < last; ++k) {
     const double m = grid.mass[k];
     if (m <= 0) continue;
     const Vec<D>& v = grid.momentum[k];  // a velocity after the grid update

@@ -72,6 +72,7 @@ class CoupledContinuum {
   std::vector<double> dem_mass_;      ///< scratch: DEM node mass, touched nodes only
   std::vector<Vec<D>> dem_momentum_;
   std::vector<std::size_t> touched_;
+  std::vector<std::int64_t> touched_slot_;  ///< node -> index in touched_, -1 if untouched
   double interval_ = 0;               ///< time since the previous exchange, s
   std::vector<Vec<D>> support_force_; ///< force of the continuum on the grains per node until the next exchange
   std::vector<std::size_t> support_nodes_;  ///< nodes where support_force_ is set

@@ -2,6 +2,7 @@
 // Explicit MPM with quadratic B-splines and APIC (MLS) transfers.
 // One step is P2G, grid update, G2P (which also updates each point's stress).
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include "mpm/grid.hpp"
@@ -63,6 +64,8 @@ class Solver {
   long steps() const { return steps_; }
   /// Below this many points per thread a step runs serially (default 4096).
   void set_min_points_per_thread(std::size_t n) { min_points_per_thread_ = n; }
+  /// Flat node range [first, second) the last P2G touched: no node outside holds mass.
+  std::pair<std::size_t, std::size_t> active_nodes() const { return {active_lo_, active_hi_}; }
   /// Largest point speed after the last G2P (or at start).
   double max_speed() const { return max_speed_; }
 

@@ -1,0 +1,280 @@
+#pragma once
+// The zone oracle of the adaptive hybrid method (DESIGN.md section 5): from the grains and
+// material points it decides, per grid cell, which cells are discrete, hybrid or continuum.
+//
+//   1. packing fraction phi per cell: grain volumes summed per cell (additive, so partial
+//      sums of several DEM ranks can be added), 1 in cells holding material points;
+//   2. material = phi >= surface_packing; signed distance of each cell centre to the free
+//      surface (and to walls / intruders, passed as boundary cells), by an exact Euclidean
+//      distance transform;
+//   3. zones from the distance with the band [L - h, L + h] and the previous zones, so that a
+//      cell always passes through hybrid and does not flicker.
+//
+// Cells are numbered as in conversion.hpp (num_cells, cell_index, ...). No LAMMPS types.
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+#include "coupler/conversion.hpp"
+#include "coupler/grid_geometry.hpp"
+#include "coupler/zones.hpp"
+
+namespace coupler {
+
+struct OracleSettings {
+  double surface_packing = 0.3;  ///< free surface where phi crosses this (reference method: 0.3)
+  double continuum_depth = 0;    ///< L: continuum where the distance to surface/walls exceeds L + h
+  double band = 0;               ///< h: discrete below L - h, hybrid in between
+  // Optional extra criteria, off when <= 0:
+  double dilute_packing = 0;  ///< cells with phi below this are discrete
+  double max_shear_rate = 0;  ///< cells whose shear rate exceeds this are discrete
+};
+
+// ---------------------------------------------------------------------------------------
+// 1. Packing fraction
+
+/// Volume of one grain: disk area in 2D (LAMMPS 2D spheres act as disks), ball volume in 3D.
+template <int D>
+double grain_volume(double radius) {
+  static_assert(D == 2 || D == 3, "2D or 3D");
+  constexpr double kPi = 3.14159265358979323846;
+  return D == 2 ? kPi * radius * radius : 4.0 / 3.0 * kPi * radius * radius * radius;
+}
+
+/// Adds `volume` to the cell holding the grain centre x (the whole grain counts in the cell of
+/// its centre: cheap, additive, and exact on average over a cell). cell_volume is sized on
+/// first use. Returns false (adds nothing) if x is off the grid.
+template <int D>
+bool add_grain_volume(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& x, double volume,
+                      std::vector<double>& cell_volume) {
+  const std::size_t n = num_cells(grid);
+  if (cell_volume.empty()) cell_volume.assign(n, 0.0);
+  if (cell_volume.size() != n) throw std::invalid_argument("add_grain_volume: cell_volume has the wrong size");
+  const Eigen::Matrix<int, D, 1> c = cell_of(grid, x);
+  if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return false;
+  cell_volume[cell_index(grid, c)] += volume;
+  return true;
+}
+
+/// add_grain_volume for grains with centres x[i] and radii radius[i].
+template <int D>
+void add_grain_volumes(const GridGeometry<D>& grid, const std::vector<Eigen::Matrix<double, D, 1>>& x,
+                       const std::vector<double>& radius, std::vector<double>& cell_volume) {
+  if (x.size() != radius.size()) throw std::invalid_argument("add_grain_volumes: x and radius differ in size");
+  if (cell_volume.empty()) cell_volume.assign(num_cells(grid), 0.0);
+  for (std::size_t i = 0; i < x.size(); ++i) add_grain_volume<D>(grid, x[i], grain_volume<D>(radius[i]), cell_volume);
+}
+
+/// Flags the cell holding the material point at x (for packing_fraction). Sized on first use.
+template <int D>
+void mark_point_cell(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& x,
+                     std::vector<std::uint8_t>& has_points) {
+  if (has_points.empty()) has_points.assign(num_cells(grid), 0);
+  const Eigen::Matrix<int, D, 1> c = cell_of(grid, x);
+  if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return;
+  has_points[cell_index(grid, c)] = 1;
+}
+
+/// phi per cell: summed grain volume over the cell volume, clamped to [0, 1]; 1 where the
+/// cell holds material points (continuum material is dense by definition). Either input may
+/// be empty (no grains / no points).
+template <int D>
+std::vector<double> packing_fraction(const GridGeometry<D>& grid, const std::vector<double>& grain_volume_per_cell,
+                                     const std::vector<std::uint8_t>& has_points) {
+  const std::size_t n = num_cells(grid);
+  if ((!grain_volume_per_cell.empty() && grain_volume_per_cell.size() != n) ||
+      (!has_points.empty() && has_points.size() != n))
+    throw std::invalid_argument("packing_fraction: input of the wrong size");
+  const double inv_cell = 1.0 / std::pow(grid.dx, D);
+  std::vector<double> phi(n, 0.0);
+  for (std::size_t c = 0; c < n; ++c) {
+    if (!has_points.empty() && has_points[c])
+      phi[c] = 1;
+    else if (!grain_volume_per_cell.empty())
+      phi[c] = std::clamp(grain_volume_per_cell[c] * inv_cell, 0.0, 1.0);
+  }
+  return phi;
+}
+
+// ---------------------------------------------------------------------------------------
+// 2. Signed distance
+
+namespace oracle_detail {
+/// 1D squared distance transform (Felzenszwalb & Huttenlocher 2012): d[p] = min_q (p-q)^2 + f[q]
+/// over the lower envelope of parabolas. f may hold +inf (no site); d is +inf if all are.
+/// v, z: scratch of size n and n + 1.
+inline void edt_1d(const double* f, double* d, int n, std::vector<int>& v, std::vector<double>& z) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  int k = -1;
+  for (int q = 0; q < n; ++q) {
+    if (f[q] == kInf) continue;  // skipping empty sites keeps inf out of the intersection formula
+    if (k < 0) {
+      k = 0, v[0] = q, z[0] = -kInf, z[1] = kInf;
+      continue;
+    }
+    double s;
+    for (;;) {  // pop parabolas hidden by the new one; z[0] = -inf stops at k = 0
+      const int r = v[k];
+      s = ((f[q] + double(q) * q) - (f[r] + double(r) * r)) / (2.0 * (q - r));
+      if (s <= z[k]) --k; else break;
+    }
+    ++k, v[k] = q, z[k] = s, z[k + 1] = kInf;
+  }
+  if (k < 0) {
+    std::fill(d, d + n, kInf);
+    return;
+  }
+  k = 0;
+  for (int p = 0; p < n; ++p) {
+    while (z[k + 1] < p) ++k;
+    const double dp = p - v[k];
+    d[p] = dp * dp + f[v[k]];
+  }
+}
+}  // namespace oracle_detail
+
+/// Exact squared Euclidean distance, in cell units, from each cell centre to the nearest
+/// centre of a `source` cell (+inf if there is none), on a row-major grid of `cells` cells per
+/// axis (last axis fastest). Separable: one 1D transform per axis, O(cells * D).
+template <int D>
+std::vector<double> squared_distance_transform(const Eigen::Matrix<int, D, 1>& cells,
+                                               const std::vector<std::uint8_t>& source) {
+  std::size_t n = 1;
+  for (int a = 0; a < D; ++a) n *= static_cast<std::size_t>(cells[a]);
+  if (source.size() != n) throw std::invalid_argument("squared_distance_transform: mask of the wrong size");
+  std::vector<double> g(n);
+  for (std::size_t c = 0; c < n; ++c) g[c] = source[c] ? 0.0 : std::numeric_limits<double>::infinity();
+  const int longest = cells.maxCoeff();
+  std::vector<double> line(longest), out(longest), z(longest + 1);
+  std::vector<int> v(longest);
+  for (int a = 0; a < D; ++a) {
+    std::size_t stride = 1;
+    for (int b = D - 1; b > a; --b) stride *= static_cast<std::size_t>(cells[b]);
+    const int len = cells[a];
+    // Lines along axis a start at every cell whose coordinate a is 0.
+    for (std::size_t start = 0; start < n; ++start) {
+      if ((start / stride) % static_cast<std::size_t>(len) != 0) continue;
+      for (int i = 0; i < len; ++i) line[i] = g[start + i * stride];
+      oracle_detail::edt_1d(line.data(), out.data(), len, v, z);
+      for (int i = 0; i < len; ++i) g[start + i * stride] = out[i];
+    }
+  }
+  return g;
+}
+
+/// Cells whose centre lies outside the box [lower, upper] (the padding of padded_grid): pass
+/// them as boundary cells to signed_distance so that the walls of the box act as surfaces.
+template <int D>
+std::vector<std::uint8_t> cells_outside_box(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& lower,
+                                            const Eigen::Matrix<double, D, 1>& upper) {
+  const std::size_t n = num_cells(grid);
+  std::vector<std::uint8_t> out(n);
+  for (std::size_t c = 0; c < n; ++c) {
+    const auto x = cell_center(grid, cell_coords(grid, c));
+    out[c] = !((x.array() >= lower.array()).all() && (x.array() <= upper.array()).all());
+  }
+  return out;
+}
+
+/// Signed distance, in length units, from each cell centre to the surface of the material.
+/// Sign convention: positive inside (cell is `material` and not a boundary cell), negative
+/// outside; never zero. Boundary cells (walls, intruders, box padding; may be empty) count as
+/// outside, so material next to them is near a surface: grains are wanted there too.
+///
+/// The surface is taken half way between an inside and an outside cell centre, so
+///   inside:  d = (|nearest outside centre| - dx/2),   outside: d = -(|nearest inside centre| - dx/2),
+/// exact for surfaces on cell faces and within about half a cell otherwise. +inf if there is
+/// no outside cell at all (-inf if no inside cell); the grid edge itself is not a surface.
+template <int D>
+std::vector<double> signed_distance(const GridGeometry<D>& grid, const std::vector<std::uint8_t>& material,
+                                    const std::vector<std::uint8_t>& boundary_cells) {
+  const std::size_t n = num_cells(grid);
+  if (material.size() != n || (!boundary_cells.empty() && boundary_cells.size() != n))
+    throw std::invalid_argument("signed_distance: mask of the wrong size");
+  std::vector<std::uint8_t> inside(n), outside(n);
+  for (std::size_t c = 0; c < n; ++c) {
+    inside[c] = material[c] && (boundary_cells.empty() || !boundary_cells[c]);
+    outside[c] = !inside[c];
+  }
+  const Eigen::Matrix<int, D, 1> cells = grid.dims.array() - 1;
+  const std::vector<double> to_outside = squared_distance_transform<D>(cells, outside);
+  const std::vector<double> to_inside = squared_distance_transform<D>(cells, inside);
+  std::vector<double> d(n);
+  for (std::size_t c = 0; c < n; ++c)
+    d[c] = inside[c] ? (std::sqrt(to_outside[c]) - 0.5) * grid.dx : -(std::sqrt(to_inside[c]) - 0.5) * grid.dx;
+  return d;
+}
+
+// ---------------------------------------------------------------------------------------
+// 3. Zones
+
+/// New zone per cell from the previous zones (empty: all discrete, the start of a run), the
+/// signed distance, and optionally the packing (needed if dilute_packing > 0) and shear rate
+/// per cell (needed if max_shear_rate > 0; may be empty otherwise).
+///
+/// Target zone, with lo = L - h, hi = L + h ("forced": an extra criterion fires):
+///   forced or d < lo -> discrete;  lo <= d <= hi -> hybrid;  d > hi -> continuum.
+/// A cell moves at most one step towards its target per update:
+///
+///   previous \ target | discrete   hybrid   continuum
+///   discrete          | discrete   hybrid   hybrid      (never discrete -> continuum)
+///   hybrid            | discrete   hybrid   continuum
+///   continuum         | hybrid     hybrid   continuum   (never continuum -> discrete)
+///
+/// The hybrid band is the hysteresis: going from discrete to continuum takes d > hi, going
+/// back takes d < lo, so a distance oscillating inside [lo, hi] leaves hybrid cells hybrid,
+/// and (as continuum needs d > hi, discrete d < lo or forcing) a continuum cell is never
+/// next to a discrete one when 2h exceeds the distance between neighbouring centres
+/// (h > sqrt(D)/2 dx), except next to cells forced discrete by the extra criteria.
+inline std::vector<std::int8_t> update_zones(const std::vector<std::int8_t>& previous,
+                                             const std::vector<double>& distance, const std::vector<double>& packing,
+                                             const std::vector<double>& shear_rate, const OracleSettings& s) {
+  const std::size_t n = distance.size();
+  const bool dilute = s.dilute_packing > 0, shear = s.max_shear_rate > 0;
+  if ((!previous.empty() && previous.size() != n) || (dilute && packing.size() != n) ||
+      (shear && shear_rate.size() != n))
+    throw std::invalid_argument("update_zones: input of the wrong size");
+  const double lo = s.continuum_depth - s.band, hi = s.continuum_depth + s.band;
+  std::vector<std::int8_t> zones(n);
+  for (std::size_t c = 0; c < n; ++c) {
+    const bool forced = (dilute && packing[c] < s.dilute_packing) || (shear && shear_rate[c] > s.max_shear_rate);
+    const int target =
+        (forced || distance[c] < lo) ? int{kDiscrete} : (distance[c] > hi ? int{kContinuum} : int{kHybrid});
+    const int prev = previous.empty() ? int{kDiscrete} : int{previous[c]};
+    zones[c] = static_cast<std::int8_t>(std::clamp(target, prev - 1, prev + 1));  // one step at most
+  }
+  return zones;
+}
+
+// ---------------------------------------------------------------------------------------
+// All three steps
+
+struct OracleResult {
+  std::vector<double> packing;   ///< phi per cell
+  std::vector<double> distance;  ///< signed distance per cell (positive inside)
+  std::vector<std::int8_t> zones;
+};
+
+/// One oracle update from the summed grain volumes per cell (all ranks added), the cells
+/// holding material points, the boundary cells (walls/intruders/cells_outside_box; may be
+/// empty), the previous zones (empty: all discrete) and the shear rate (may be empty).
+template <int D>
+OracleResult run_oracle(const GridGeometry<D>& grid, const std::vector<double>& grain_volume_per_cell,
+                        const std::vector<std::uint8_t>& has_points, const std::vector<std::uint8_t>& boundary_cells,
+                        const std::vector<std::int8_t>& previous, const std::vector<double>& shear_rate,
+                        const OracleSettings& settings) {
+  OracleResult r;
+  r.packing = packing_fraction<D>(grid, grain_volume_per_cell, has_points);
+  std::vector<std::uint8_t> material(r.packing.size());
+  for (std::size_t c = 0; c < material.size(); ++c) material[c] = r.packing[c] >= settings.surface_packing;
+  r.distance = signed_distance<D>(grid, material, boundary_cells);
+  r.zones = update_zones(previous, r.distance, r.packing, shear_rate, settings);
+  return r;
+}
+
+}  // namespace coupler

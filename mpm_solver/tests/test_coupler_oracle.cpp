@@ -1,0 +1,357 @@
+// The zone oracle: packing fraction from grains, exact signed distance to the free surface
+// and walls, and zones with the hybrid band as hysteresis.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "coupler/oracle.hpp"
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+template <int D>
+using Vec = Eigen::Matrix<double, D, 1>;
+template <int D>
+using IVec = Eigen::Matrix<int, D, 1>;
+
+/// Grid from the origin 0 with `cells` cells per axis.
+template <int D>
+coupler::GridGeometry<D> grid_of(const IVec<D>& cells, double dx) {
+  coupler::GridGeometry<D> g;
+  g.dx = dx;
+  g.origin.setZero();
+  g.dims = cells.array() + 1;
+  return g;
+}
+
+/// Centres of a simple cubic lattice of touching grains of radius r filling [0, extent).
+template <int D>
+std::vector<Vec<D>> lattice(const Vec<D>& extent, double r) {
+  IVec<D> n;
+  for (int a = 0; a < D; ++a) n[a] = static_cast<int>(std::lround(extent[a] / (2 * r)));
+  std::vector<Vec<D>> x;
+  const int total = n.prod();
+  for (int k = 0; k < total; ++k) {
+    Vec<D> p;
+    for (int a = D - 1, j = k; a >= 0; j /= n[a], --a) p[a] = ((j % n[a]) + 0.5) * 2 * r;
+    x.push_back(p);
+  }
+  return x;
+}
+
+// ------------------------------------------------------------------------------ packing
+
+template <int D>
+void check_lattice_packing(double expected) {
+  const double r = 0.01, dx = 0.04;  // 2 grains per cell per axis
+  IVec<D> cells;
+  for (int a = 0; a < D; ++a) cells[a] = 3 + a;
+  const auto grid = grid_of<D>(cells, dx);
+  const Vec<D> extent = dx * cells.template cast<double>();
+  const auto x = lattice<D>(extent, r);
+  ASSERT_EQ(x.size(), static_cast<std::size_t>(cells.prod() * (1 << D)));
+  const std::vector<double> radius(x.size(), r);
+
+  std::vector<double> volume;
+  coupler::add_grain_volumes<D>(grid, x, radius, volume);
+  const auto phi = coupler::packing_fraction<D>(grid, volume, {});
+  ASSERT_EQ(phi.size(), coupler::num_cells(grid));
+  for (double p : phi) EXPECT_NEAR(p, expected, 1e-12);
+
+  // Two "ranks" each hold every other grain; their partial sums add up to the single sum.
+  std::vector<double> rank0, rank1;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    coupler::add_grain_volume<D>(grid, x[i], coupler::grain_volume<D>(r), i % 2 ? rank1 : rank0);
+  for (std::size_t c = 0; c < volume.size(); ++c) {
+    EXPECT_GT(rank0[c], 0);
+    EXPECT_GT(rank1[c], 0);
+    EXPECT_NEAR(rank0[c] + rank1[c], volume[c], 1e-14 * volume[c]);
+  }
+}
+
+TEST(coupler_oracle, PackingOfSquareLatticeOfDisksIsPiOver4) { check_lattice_packing<2>(kPi / 4); }
+TEST(coupler_oracle, PackingOfCubicLatticeOfSpheresIsPiOver6) { check_lattice_packing<3>(kPi / 6); }
+
+TEST(coupler_oracle, PackingIsOneWithPointsAndClampedAndSkipsGrainsOffGrid) {
+  const auto grid = grid_of<2>(IVec<2>(3, 2), 0.1);
+  std::vector<double> volume;
+  EXPECT_TRUE(coupler::add_grain_volume<2>(grid, Vec<2>(0.05, 0.05), 0.5 * 0.01, volume));  // phi 0.5
+  EXPECT_TRUE(coupler::add_grain_volume<2>(grid, Vec<2>(0.15, 0.05), 3 * 0.01, volume));    // phi 3 -> 1
+  EXPECT_FALSE(coupler::add_grain_volume<2>(grid, Vec<2>(0.35, 0.05), 0.01, volume));       // off grid
+  EXPECT_FALSE(coupler::add_grain_volume<2>(grid, Vec<2>(0.05, -0.01), 0.01, volume));
+  std::vector<std::uint8_t> points;
+  coupler::mark_point_cell<2>(grid, Vec<2>(0.25, 0.15), points);
+  const auto phi = coupler::packing_fraction<2>(grid, volume, points);
+  const auto at = [&](int i, int j) { return phi[coupler::cell_index(grid, IVec<2>(i, j))]; };
+  EXPECT_NEAR(at(0, 0), 0.5, 1e-12);
+  EXPECT_EQ(at(1, 0), 1.0);
+  EXPECT_EQ(at(2, 0), 0.0);
+  EXPECT_EQ(at(2, 1), 1.0);
+  EXPECT_EQ(at(0, 1), 0.0);
+}
+
+// ------------------------------------------------------------------------------ distance
+
+template <int D>
+void check_edt_against_brute_force(const IVec<D>& cells, double density, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::bernoulli_distribution pick(density);
+  const auto grid = grid_of<D>(cells, 1.0);
+  const std::size_t n = coupler::num_cells(grid);
+  std::vector<std::uint8_t> source(n);
+  for (auto& s : source) s = pick(rng);
+  const auto d2 = coupler::squared_distance_transform<D>(cells, source);
+  for (std::size_t c = 0; c < n; ++c) {
+    double best = std::numeric_limits<double>::infinity();
+    const IVec<D> i = coupler::cell_coords(grid, c);
+    for (std::size_t s = 0; s < n; ++s)
+      if (source[s]) best = std::min(best, double((coupler::cell_coords(grid, s) - i).squaredNorm()));
+    ASSERT_EQ(d2[c], best) << "cell " << i.transpose();
+  }
+}
+
+TEST(coupler_oracle, DistanceTransformIsExactAgainstBruteForce2D) {
+  check_edt_against_brute_force<2>(IVec<2>(13, 17), 0.05, 1);
+  check_edt_against_brute_force<2>(IVec<2>(17, 13), 0.3, 2);
+  check_edt_against_brute_force<2>(IVec<2>(9, 11), 0.0, 3);  // no source: all +inf
+}
+
+TEST(coupler_oracle, DistanceTransformIsExactAgainstBruteForce3D) {
+  check_edt_against_brute_force<3>(IVec<3>(7, 9, 11), 0.03, 4);
+  check_edt_against_brute_force<3>(IVec<3>(11, 6, 8), 0.2, 5);
+}
+
+/// The surface sits half way between centres: the error is >= -dx/2 (no outside centre is nearer
+/// than the true surface for these convex shapes), and reaches it when a centre lies on the surface.
+constexpr double kHalfCell = 0.5 + 1e-9;
+
+/// Signed distance of the mask {phi_true(centre) > 0}, compared with phi_true at every cell whose
+/// centre lies at least |phi_true| + margin inside the grid (so the grid edge does not cut off the
+/// nearest surface point). Returns the largest error in cells.
+template <int D, class TrueDistance>
+double max_distance_error(const coupler::GridGeometry<D>& grid, TrueDistance&& exact) {
+  const std::size_t n = coupler::num_cells(grid);
+  std::vector<std::uint8_t> material(n);
+  for (std::size_t c = 0; c < n; ++c)
+    material[c] = exact(coupler::cell_center(grid, coupler::cell_coords(grid, c))) > 0;
+  const auto d = coupler::signed_distance<D>(grid, material, {});
+  const Vec<D> upper = grid.node_position(grid.dims.array() - 1);
+  double worst = 0;
+  int checked = 0;
+  for (std::size_t c = 0; c < n; ++c) {
+    const Vec<D> x = coupler::cell_center(grid, coupler::cell_coords(grid, c));
+    const double want = exact(x);
+    const double room = std::min((x - grid.origin).minCoeff(), (upper - x).minCoeff());
+    if (room < std::abs(want) + 2 * grid.dx) continue;
+    EXPECT_EQ(d[c] > 0, material[c] != 0);  // sign convention: positive inside
+    worst = std::max(worst, std::abs(d[c] - want) / grid.dx);
+    ++checked;
+  }
+  EXPECT_GT(checked, 100);  // enough cells away from the grid edge
+  return worst;
+}
+
+TEST(coupler_oracle, SignedDistanceOfHalfSpaceIsDistanceToPlane) {
+  // Axis-aligned planes (inside below): within half a cell, and exact when the plane is on faces.
+  const auto g2 = grid_of<2>(IVec<2>(21, 31), 0.1);
+  EXPECT_LE(max_distance_error<2>(g2, [](const Vec<2>& x) { return 1.234 - x[1]; }), kHalfCell);
+  EXPECT_LE(max_distance_error<2>(g2, [](const Vec<2>& x) { return 1.2 - x[1]; }), 1e-9);
+  const auto g3 = grid_of<3>(IVec<3>(19, 13, 15), 0.1);
+  EXPECT_LE(max_distance_error<3>(g3, [](const Vec<3>& x) { return 0.987 - x[0]; }), kHalfCell);
+  EXPECT_LE(max_distance_error<3>(g3, [](const Vec<3>& x) { return x[2] - 0.7; }), 1e-9);
+  // Tilted planes.
+  const Vec<2> n2 = Vec<2>(0.3, 0.8).normalized();
+  EXPECT_LE(max_distance_error<2>(g2, [&](const Vec<2>& x) { return 1.71 - n2.dot(x); }), kHalfCell);
+  const Vec<3> n3 = Vec<3>(0.3, 0.8, 0.5).normalized();
+  EXPECT_LE(max_distance_error<3>(g3, [&](const Vec<3>& x) { return 1.13 - n3.dot(x); }), kHalfCell);
+}
+
+TEST(coupler_oracle, SignedDistanceOfDiskAndBallIsRMinusR) {
+  const auto g2 = grid_of<2>(IVec<2>(40, 36), 0.05);
+  const Vec<2> c2(1.013, 0.891);
+  EXPECT_LE(max_distance_error<2>(g2, [&](const Vec<2>& x) { return 0.61 - (x - c2).norm(); }), kHalfCell);
+  const auto g3 = grid_of<3>(IVec<3>(22, 24, 20), 0.05);
+  const Vec<3> c3(0.551, 0.598, 0.493);
+  EXPECT_LE(max_distance_error<3>(g3, [&](const Vec<3>& x) { return 0.37 - (x - c3).norm(); }), kHalfCell);
+}
+
+TEST(coupler_oracle, WallsAreSurfacesThroughBoundaryCells) {
+  // All material: the distance is the one to the nearest wall of the box (exact: walls on faces).
+  const Vec<3> lower(0, 0, 0), upper(1.0, 0.8, 0.6);
+  const auto grid = coupler::padded_grid<3>(lower, upper, 0.1);
+  const std::size_t n = coupler::num_cells(grid);
+  const auto walls = coupler::cells_outside_box<3>(grid, lower, upper);
+  const std::vector<std::uint8_t> material(n, 1);
+  const auto d = coupler::signed_distance<3>(grid, material, walls);
+  for (std::size_t c = 0; c < n; ++c) {
+    const Vec<3> x = coupler::cell_center(grid, coupler::cell_coords(grid, c));
+    if (walls[c]) {
+      EXPECT_LT(d[c], 0);
+      continue;
+    }
+    EXPECT_NEAR(d[c], std::min((x - lower).minCoeff(), (upper - x).minCoeff()), 1e-9);
+  }
+  // Without boundary cells there is no surface at all.
+  for (double v : coupler::signed_distance<3>(grid, material, {}))
+    EXPECT_EQ(v, std::numeric_limits<double>::infinity());
+}
+
+// ------------------------------------------------------------------------------ zones
+
+coupler::OracleSettings band_settings() {
+  coupler::OracleSettings s;
+  s.continuum_depth = 0.3;  // lo = 0.2, hi = 0.4
+  s.band = 0.1;
+  return s;
+}
+
+/// Column: material in the lower half (last axis) of the box, walls as surfaces. 2D from a grain
+/// lattice (phi = pi/4), 3D from material points. Checks the zones after one and two updates.
+template <int D>
+void check_column(bool from_grains) {
+  const double dx = 0.1;
+  Vec<D> lower = Vec<D>::Zero(), upper;
+  for (int a = 0; a < D; ++a) upper[a] = 1.2 + 0.2 * a;
+  upper[D - 1] = 2.0;  // top at 1: the floor is deeper than L + h below the spot checks
+  const double top = upper[D - 1] / 2;
+  const auto grid = coupler::padded_grid<D>(lower, upper, dx);
+  const std::size_t n = coupler::num_cells(grid);
+
+  std::vector<double> volume;
+  std::vector<std::uint8_t> points;
+  Vec<D> extent = upper;
+  extent[D - 1] = top;
+  if (from_grains) {
+    const auto x = lattice<D>(extent, dx / 4);
+    coupler::add_grain_volumes<D>(grid, x, std::vector<double>(x.size(), dx / 4), volume);
+  } else {
+    for (std::size_t c = 0; c < n; ++c) {
+      const Vec<D> x = coupler::cell_center(grid, coupler::cell_coords(grid, c));
+      if ((x.array() > lower.array()).all() && (x.array() < extent.array()).all())
+        coupler::mark_point_cell<D>(grid, x, points);
+    }
+  }
+  const auto walls = coupler::cells_outside_box<D>(grid, lower, upper);
+  const auto s = band_settings();
+
+  const auto first = coupler::run_oracle<D>(grid, volume, points, walls, {}, {}, s);
+  EXPECT_EQ(coupler::zone_counts(first.zones)[coupler::kContinuum], 0u);  // needs a hybrid step first
+  EXPECT_GT(coupler::zone_counts(first.zones)[coupler::kHybrid], 0u);
+  const auto second = coupler::run_oracle<D>(grid, volume, points, walls, first.zones, {}, s);
+
+  std::array<std::size_t, 3> seen{0, 0, 0};
+  for (std::size_t c = 0; c < n; ++c) {
+    const Vec<D> x = coupler::cell_center(grid, coupler::cell_coords(grid, c));
+    const bool inside = (x.array() > lower.array()).all() && (x.array() < extent.array()).all();
+    // Depth below the free top or from the nearest wall; distances are (k + 1/2) dx, away from lo/hi.
+    const double depth = std::min({top - x[D - 1], (x - lower).minCoeff(), (upper - x).minCoeff()});
+    int want = coupler::kDiscrete;
+    if (inside) {
+      EXPECT_NEAR(second.distance[c], depth, 1e-9);
+      if (depth > 0.4) want = coupler::kContinuum;
+      else if (depth >= 0.2) want = coupler::kHybrid;
+    } else {
+      EXPECT_LT(second.distance[c], 0);
+    }
+    EXPECT_EQ(second.zones[c], want) << "cell at " << x.transpose() << " depth " << depth;
+    ++seen[want];
+  }
+  for (auto k : seen) EXPECT_GT(k, 0u);
+
+  // Spot checks on the vertical centre line: the top layers are discrete, then hybrid, then continuum.
+  Vec<D> x = (lower + upper) / 2;
+  const auto zone_at = [&](double height) {
+    x[D - 1] = height;
+    return second.zones[coupler::cell_index(grid, coupler::cell_of(grid, x))];
+  };
+  EXPECT_EQ(zone_at(top - 0.05), coupler::kDiscrete);
+  EXPECT_EQ(zone_at(top - 0.15), coupler::kDiscrete);
+  EXPECT_EQ(zone_at(top - 0.25), coupler::kHybrid);
+  EXPECT_EQ(zone_at(top - 0.35), coupler::kHybrid);
+  EXPECT_EQ(zone_at(top - 0.45), coupler::kContinuum);
+  EXPECT_EQ(zone_at(top + 0.05), coupler::kDiscrete);
+}
+
+TEST(coupler_oracle, ColumnIsDiscreteNearTopAndWallsAndContinuumDeepInside2D) { check_column<2>(true); }
+TEST(coupler_oracle, ColumnIsDiscreteNearTopAndWallsAndContinuumDeepInside3D) { check_column<3>(false); }
+
+TEST(coupler_oracle, OneUpdateFromAllDiscreteNeverYieldsContinuum) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> dist(-1, 3);
+  std::vector<double> d(500);
+  for (double& v : d) v = dist(rng);
+  const auto s = band_settings();
+  for (const auto& prev : {std::vector<std::int8_t>{}, std::vector<std::int8_t>(d.size(), coupler::kDiscrete)}) {
+    const auto z = coupler::update_zones(prev, d, {}, {}, s);
+    EXPECT_EQ(coupler::zone_counts(z)[coupler::kContinuum], 0u);
+    for (std::size_t c = 0; c < d.size(); ++c) EXPECT_EQ(z[c], d[c] < 0.2 ? coupler::kDiscrete : coupler::kHybrid);
+  }
+}
+
+TEST(coupler_oracle, ZonesNeverJumpBetweenDiscreteAndContinuum) {
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> dist(-0.5, 1.0);
+  const auto s = band_settings();
+  std::vector<std::int8_t> z(300, coupler::kDiscrete);
+  std::vector<double> d(z.size());
+  std::array<int, 3> reached{0, 0, 0};
+  for (int step = 0; step < 200; ++step) {
+    for (double& v : d) v = dist(rng);
+    const auto next = coupler::update_zones(z, d, {}, {}, s);
+    for (std::size_t c = 0; c < z.size(); ++c) {
+      ASSERT_LE(std::abs(next[c] - z[c]), 1) << "cell " << c << " step " << step;
+      ++reached[next[c]];
+    }
+    z = next;
+  }
+  for (int k : reached) EXPECT_GT(k, 0);
+  // Continuum whose distance drops below lo: hybrid first, then discrete.
+  const std::vector<double> shallow{0.1};
+  auto one = coupler::update_zones({coupler::kContinuum}, shallow, {}, {}, s);
+  EXPECT_EQ(one[0], coupler::kHybrid);
+  EXPECT_EQ(coupler::update_zones(one, shallow, {}, {}, s)[0], coupler::kDiscrete);
+}
+
+TEST(coupler_oracle, DistanceOscillatingInsideBandKeepsZones) {
+  const auto s = band_settings();
+  // Cells that settled in the band (hybrid), and continuum / discrete cells outside it.
+  const std::vector<std::int8_t> start{coupler::kHybrid, coupler::kHybrid, coupler::kContinuum, coupler::kDiscrete};
+  const std::vector<double> a{0.21, 0.39, 0.9, -0.3}, b{0.39, 0.21, 0.41, 0.19};
+  std::vector<std::int8_t> z = start;
+  for (int step = 0; step < 20; ++step) {
+    z = coupler::update_zones(z, step % 2 ? a : b, {}, {}, s);
+    EXPECT_EQ(z, start) << "step " << step;
+  }
+  // A discrete cell entering the band becomes hybrid once and then stays hybrid.
+  z = {coupler::kDiscrete};
+  for (int step = 0; step < 10; ++step) {
+    z = coupler::update_zones(z, {step % 2 ? 0.2 : 0.4}, {}, {}, s);
+    EXPECT_EQ(z[0], coupler::kHybrid);
+  }
+}
+
+TEST(coupler_oracle, DiluteAndShearCriteriaForceDiscrete) {
+  auto s = band_settings();
+  s.dilute_packing = 0.5;
+  s.max_shear_rate = 10;
+  const std::vector<double> deep(4, 5.0);
+  const std::vector<double> phi{0.9, 0.4, 0.9, 0.5}, shear{1, 1, 11, 10};  // cells 1 dilute, 2 sheared
+  std::vector<std::int8_t> z(4, coupler::kContinuum);
+  z = coupler::update_zones(z, deep, phi, shear, s);
+  using Z = std::vector<std::int8_t>;
+  EXPECT_EQ(z, (Z{coupler::kContinuum, coupler::kHybrid, coupler::kHybrid, coupler::kContinuum}));
+  z = coupler::update_zones(z, deep, phi, shear, s);
+  EXPECT_EQ(z, (Z{coupler::kContinuum, coupler::kDiscrete, coupler::kDiscrete, coupler::kContinuum}));
+  // Off by default: the same inputs leave everything continuum.
+  z = coupler::update_zones(std::vector<std::int8_t>(4, coupler::kContinuum), deep, phi, shear, band_settings());
+  EXPECT_EQ(coupler::zone_counts(z)[coupler::kContinuum], 4u);
+  // Inputs a criterion needs must be given.
+  EXPECT_THROW(coupler::update_zones(z, deep, {}, shear, s), std::invalid_argument);
+}
+
+}  // namespace
