@@ -273,7 +273,8 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
         raise RuntimeError(f"no 'DEM collapse end' line in {out / 'log.lammps'}")
     length = float(re.search(r"^DEM domain length ([-+.\deE]+) m", log, re.M).group(1))
     # LAMMPS's loop times of the collapse stage (after the last "collapse_stage" label)
-    stage = log[log.rfind("label           collapse_stage"):]
+    # (a run from the cached column jumps straight there and may not echo the label)
+    stage = log[max(0, log.rfind("label           collapse_stage")):]
     loops = re.findall(r"^Loop time of (\S+) on \d+ procs for (\d+) steps", stage, re.M)
     steps, loop_time = sum(int(n) for _, n in loops), sum(float(t) for t, _ in loops)
     return DemResult(aspect=aspect, width=width, d=d, wall_time=wall, prepared=prep, length=length,
