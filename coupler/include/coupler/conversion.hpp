@@ -64,6 +64,31 @@ Spin<D> point_angular_momentum(const Eigen::Matrix<double, D, 1>& x, const Eigen
   return cross<D>(x, mass * v) + (mass * dx * dx / kQuadraticInverseInertia) * axial<D>(C);
 }
 
+/// Adds to J the inertia, for a rigid rotation about a centre, of mass m at offset r from it
+/// that also holds m*extra_sq of isotropic inertia of its own (APIC's dx^2/2 for a point,
+/// f r^2 for a spinning grain): the angular momentum about the centre is then J Omega.
+/// 2D: J(0,0) holds the scalar, the rest is unused.
+template <int D>
+void add_rotational_inertia(Eigen::Matrix<double, D, D>& J, double m, const Eigen::Matrix<double, D, 1>& r,
+                            double extra_sq) {
+  const double s = r.squaredNorm() + extra_sq;
+  if constexpr (D == 2)
+    J(0, 0) += m * s;
+  else
+    J += m * (s * Eigen::Matrix<double, D, D>::Identity() - r * r.transpose());
+}
+
+/// The rigid rotation rate Omega with J Omega = L (J from add_rotational_inertia).
+template <int D>
+Spin<D> rotation_rate(const Eigen::Matrix<double, D, D>& J, const Spin<D>& L) {
+  Spin<D> omega;
+  if constexpr (D == 2)
+    omega[0] = L[0] / J(0, 0);
+  else
+    omega = J.llt().solve(L);
+  return omega;
+}
+
 /// Extensive moments of the grains of one cell, additive over grains and over
 /// DEM ranks. Stored as plain double arrays (Eigen matrices are not trivially
 /// copyable) because it is sent over MPI as bytes; use the accessors.
@@ -197,19 +222,12 @@ std::vector<NewPoint<D>> points_from_moments(const CellMoments<D>& m, const Grid
     Vec x;
     for (int a = D - 1, k = p; a >= 0; --a, k /= per_axis) x[a] = lower[a] + (k % per_axis + 0.5) / per_axis * grid.dx;
     const Vec r = x - centre;
-    if constexpr (D == 2)
-      J(0, 0) += mp * (r.squaredNorm() + grid.dx * grid.dx / 2);
-    else
-      J += mp * ((r.squaredNorm() + grid.dx * grid.dx / 2) * Mat::Identity() - r * r.transpose());
+    add_rotational_inertia<D>(J, mp, r, grid.dx * grid.dx / 2);
     points[p].x = x;
   }
   const Vec V = m.momentum() / m.mass;
   const Spin<D> L_int = m.angular() - cross<D>(centre, m.momentum().eval());
-  Spin<D> omega;
-  if constexpr (D == 2)
-    omega[0] = L_int[0] / J(0, 0);
-  else
-    omega = J.llt().solve(L_int);
+  const Spin<D> omega = rotation_rate<D>(J, L_int);
   const Mat C = skew<D>(omega);
 
   for (NewPoint<D>& pt : points) {
