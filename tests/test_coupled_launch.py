@@ -113,6 +113,11 @@ def test_launcher_composes_both_routes(tmp_path, hybrid_programs, hybrid_plugin)
     ("cell 0.01 model granite", "keyword 'model' must be drucker_prager or mu_i, not 'granite'"),
     ("cell 0.01 timeout", "keyword 'timeout' needs a value"),
     ("cell 0.01 every 0", "keyword 'every' needs a positive integer"),
+    ("cell 0.01 continuum nowhere", "continuum region 'nowhere' does not exist"),
+    ("cell 0.01 weight 1.5", "keyword 'weight' (the share of a hybrid cell's mass its grains keep) must be between "
+                             "0 and 1, not 1.5"),
+    ("cell 0.01 wall friction", "keyword 'wall friction' needs the friction coefficient"),
+    ("cell 0.01 container 0 INF", "keyword 'container' needs 4 values (xlo xhi ylo yhi; INF = the box face)"),
 ])
 def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_programs, fix_args, message):
     deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, fix_args))
@@ -172,6 +177,27 @@ def test_version_mismatch_is_an_error_on_both_sides_naming_both_versions(tmp_pat
     both = "fix hybrid/mpm is release 0.1.0 (protocol 2), mpm_solver is release 9.9.9 (protocol 2)"
     assert f"mpm_solver: error: version mismatch: {both}" in text, text
     assert f"ERROR: Fix hybrid/mpm: the MPM process refused the connection: version mismatch: {both}" in text
+
+
+def test_cell_larger_than_the_box_is_refused_at_the_handshake(tmp_path, hybrid_programs):
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, "cell 0.08"))
+    proc, elapsed = launch("-np", "2", str(deck), "-log", "none", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    message = "the grid cell size 0.080000 m is more than half the box along x (0.100000 m): choose a smaller 'cell'"
+    assert "ERROR: Fix hybrid/mpm: the MPM process refused the connection: " + message in text, text
+    assert elapsed < STOP_WITHIN
+
+
+def test_unwritable_output_directory_is_a_clear_error(tmp_path, hybrid_programs):
+    blocker = tmp_path / "file"
+    blocker.write_text("a file where the output directory should go")
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, f"cell 0.01 output {blocker}/frames 1"))
+    proc, elapsed = launch("-np", "2", str(deck), "-log", "none", "-var", "nsteps", "20", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "the MPM process could not set up the continuum: cannot create output directory" in text, text
+    assert elapsed < STOP_WITHIN
 
 
 # ---------------------------------------------------------------------------- no peer

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <memory>
 #include <cstdlib>
 #include <chrono>
 #include <cstdio>
@@ -17,6 +18,7 @@
 #include "coupler/protocol.hpp"
 #include "coupler/version.hpp"
 #include "mpm/coupled_continuum.hpp"
+#include "mpm/materials.hpp"
 
 namespace mpm {
 
@@ -33,6 +35,17 @@ std::string check_hello(const coupler::Hello& h) {
   if (h.model != coupler::kModelDruckerPrager && h.model != coupler::kModelMuI)
     return "unknown constitutive model id " + std::to_string(h.model);
   if (h.mpm_every < 1) return "the exchange interval must be >= 1 step";
+  for (int a = 0; a < h.dimension; ++a)
+    if (!(h.box_hi[a] - h.box_lo[a] >= 2 * h.cell))
+      return "the grid cell size " + std::to_string(h.cell) + " m is more than half the box along " +
+             std::string(1, "xyz"[a]) + " (" + std::to_string(h.box_hi[a] - h.box_lo[a]) +
+             " m): choose a smaller 'cell' on the fix line";
+  try {
+    MaterialModel model(coupled_scene(h).materials.at(0));  // the material checks of pure MPM scenes
+  } catch (const UserError& e) {
+    return std::string("the continuum's material (fix hybrid/mpm keywords youngs, poisson, friction, mu_s, mu_2, "
+                       "I0, diameter, grain_density, critical_packing): ") + e.what();
+  }
   return "";
 }
 
@@ -113,10 +126,15 @@ void ack_all(coupler::Link& link, const coupler::StepAck& ack, const std::string
 /// Serves the coupled run until Finish (returns 0) or an AbortNote (returns 1).
 template <int D>
 int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions& opt, const std::atomic<bool>* ended) {
-  CoupledContinuum<D> continuum(hello);
+  std::string deferred_error;  // a failure after the last acknowledgement, reported at the next exchange
+  std::unique_ptr<CoupledContinuum<D>> built;
+  try {
+    built = std::make_unique<CoupledContinuum<D>>(hello);
+  } catch (const std::exception& e) {  // e.g. an output directory that cannot be created
+    deferred_error = std::string("the MPM process could not set up the continuum: ") + e.what();
+  }
   const double idle = hello.idle_timeout;
   long steps = 0;
-  std::string deferred_error;  // a failure after the last acknowledgement, reported at the next exchange
   for (;;) {
     const coupler::Message m = link.receive(
         0, {coupler::kTagStep, coupler::kTagFinish, coupler::kTagAbort},
@@ -131,7 +149,8 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
         const auto cells = receive_from_all<coupler::CellMoments<D>>(link, coupler::kTagCells, "the cell moments");
         coupler::StepAck ack;
         try {
-          ack = continuum.convert(h.time, std::move(zones), cells);
+          if (!deferred_error.empty()) throw UserError(deferred_error);
+          ack = built->convert(h.time, std::move(zones), cells);
         } catch (const UserError& e) {
           ack = error_ack(h.step, e.what());
         }
@@ -147,11 +166,12 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
         const std::string path = coupler::get_text(request.path);
         coupler::StepAck ack;
         try {
-          if (continuum.step_open())  // LAMMPS announces no next exchange before a restart file
+          if (!deferred_error.empty()) throw UserError(deferred_error);
+          if (built->step_open())  // LAMMPS announces no next exchange before a restart file
             throw UserError("internal: a state request while a substep is open");
-          if (h.kind == coupler::kStepSave) continuum.save(path, h.step, request.exchanges);
-          else continuum.load(path);
-          ack = continuum.totals(h.step);
+          if (h.kind == coupler::kStepSave) built->save(path, h.step, request.exchanges);
+          else built->load(path);
+          ack = built->totals(h.step);
         } catch (const UserError& e) {
           ack = error_ack(h.step, e.what());
         }
@@ -169,14 +189,14 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
       // continuum's work (G2P, output, the substeps to the next exchange) overlaps LAMMPS's
       // next steps. Its errors are reported at the next exchange.
       coupler::StepAck ack;
-      if (!deferred_error.empty()) ack = error_ack(h.step, deferred_error);
+      if (!deferred_error.empty()) ack = error_ack(h.step, deferred_error);  // (also: no continuum)
       else {
         try {
-          continuum.advance_to(h.time);
-          const auto replies = continuum.agree(nodes);
+          built->advance_to(h.time);
+          const auto replies = built->agree(nodes);
           for (int r = 0; r < link.remote_size(); ++r)
             link.send_array(r, coupler::kTagNodeReply, replies[r], "the node velocities" + at);
-          ack = continuum.grid_totals(h.step);
+          ack = built->grid_totals(h.step);
         } catch (const UserError& e) {
           ack = error_ack(h.step, std::string("the continuum failed") + at + ": " + e.what());
         }
@@ -191,9 +211,9 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
       std::vector<std::vector<coupler::GrainRecord>> grains;
       if (h.output) grains = receive_from_all<coupler::GrainRecord>(link, coupler::kTagGrains, "the grains" + at);
       try {
-        continuum.complete_step();
-        if (h.output) continuum.write_frame(grains, h.step);
-        if (h.next_time > h.time) continuum.advance_to(h.next_time);
+        built->complete_step();
+        if (h.output) built->write_frame(grains, h.step);
+        if (h.next_time > h.time) built->advance_to(h.next_time);
       } catch (const UserError& e) {
         deferred_error = std::string("the continuum failed after step ") + std::to_string(h.step) + ": " + e.what();
       } catch (const std::exception& e) {
@@ -206,7 +226,7 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
         return 2;
       }
       say(opt, "coupled run finished at LAMMPS step " + std::to_string(f.step) + " after " + std::to_string(steps) +
-                   " exchange(s); " + std::to_string(continuum.solver().points().size()) + " material points");
+                   " exchange(s); " + std::to_string(built->solver().points().size()) + " material points");
       link.mark(coupler::Link::State::kFinished);
       return 0;
     } else {
