@@ -1,0 +1,320 @@
+#!/usr/bin/env python3
+"""Pure-DEM references of a reduced quasi-3D (slab) granular column collapse, run with
+LAMMPS (input_decks/column_collapse/dem_3d.lmp) or LIGGGHTS (liggghts_3d.in), the twin
+decks sharing one parameter set and one contact law (see the decks' headers for the
+LAMMPS <-> LIGGGHTS mapping).
+
+This driver writes the initial grains (a data file both codes read: frozen floor spheres
+and a loose lattice of polydisperse spheres to pour), runs one code's deck, reads its
+dumps and measures the normalised runout (Lf - L0)/L0 and the final surface profile with
+the front definition of tools/dem_collapse.py: the deposit is the cluster of flowing grains
+connected through contacts (gap < CONTACT_GAP d) to the grain nearest the back wall, here
+in 3D with the periodic z direction, and Lf = max(x + r) over it. The surface profile is
+dem_collapse.surface_profile (max y + r per x bin of 2 d) over the connected deposit.
+
+    tools/dem3d_collapse.py --code lammps   --np 2 --out /tmp/d3_lmp
+    tools/dem3d_collapse.py --code liggghts --np 2 --out /tmp/d3_lig
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from column_collapse import published_runout_range  # noqa: E402
+from dem_collapse import CONTACT_GAP, read_dump, surface_profile  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+DECKS = {
+    "lammps": REPO / "input_decks" / "column_collapse" / "dem_3d.lmp",
+    "liggghts": REPO / "input_decks" / "column_collapse" / "liggghts_3d.in",
+}
+EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
+
+FLOOR_SPACING = 1.2      # floor sphere spacing in x and z, in d (a 0.9 d grain cannot pass)
+LATTICE_SPACING = 1.16   # loose pouring lattice spacing (x, y), in d (> dmax + 2 * jitter)
+LATTICE_JITTER = 0.025   # random offset of the lattice sites, +- in d, per axis
+PHI_EST = 0.60           # packing fraction assumed to size the pour (trimmed 8 % extra)
+
+
+def runout_upper(aspect: float) -> float:
+    return 1.8 * aspect if aspect < 1.8 else 2.3 * aspect ** (2.0 / 3.0)
+
+
+def domain_length(aspect: float, width: float, d: float) -> float:
+    """x of the end wall: as the decks' default (twice the published upper bound, margin)."""
+    return width * (1.0 + 2.0 * runout_upper(aspect)) + 20 * d
+
+
+def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: int,
+               seed: int, rho: float = 2500.0) -> dict:
+    """Writes the initial data file (atom_style sphere: id type diameter density x y z)
+    that both decks read. Floor: frozen spheres of diameter d on a square lattice of spacing
+    FLOOR_SPACING d in x and z, centres at y = -d/2, over the whole domain. Grains: diameters
+    uniform in [0.9, 1.1] d, on a lattice of spacing LATTICE_SPACING d in x and y and
+    W / round(W / (LATTICE_SPACING d)) in z, offset by up to +-LATTICE_JITTER d, between
+    x = 0 and L0, from y = 0.6 d up until about 1.08 * PHI_EST * L0 H0 W of grain volume."""
+    rng = np.random.default_rng(seed)
+    H0 = aspect * width
+    W = thickness_d * FLOOR_SPACING * d         # slab thickness: a whole number of floor rows
+    length = domain_length(aspect, width, d)
+    # floor
+    fs = FLOOR_SPACING * d
+    fx = np.arange(0.5 * fs - 2 * d, length + 2 * d, fs)
+    fz = (np.arange(thickness_d) + 0.5) * fs
+    FX, FZ = np.meshgrid(fx, fz, indexing="ij")
+    floor = np.column_stack([FX.ravel(), np.full(FX.size, -0.5 * d), FZ.ravel()])
+    # grains
+    s = LATTICE_SPACING * d
+    nz = max(1, int(round(W / s)))
+    sz = W / nz
+    if sz < 1.1 * d + 2 * LATTICE_JITTER * d:
+        nz -= 1
+        sz = W / nz
+    margin = 0.55 * 1.1 * d + LATTICE_JITTER * d
+    xs = np.arange(margin, width - margin + 1e-12, s)
+    zs = (np.arange(nz) + 0.5) * sz
+    vmean = math.pi / 6 * d ** 3 * 1.01          # <D^3> for D uniform in [0.9, 1.1] d
+    need = int(math.ceil(1.08 * PHI_EST * width * H0 * W / vmean))
+    per_layer = len(xs) * len(zs)
+    layers = int(math.ceil(need / per_layer))
+    ys = 0.6 * d + np.arange(layers) * s
+    X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
+    grains = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    grains += rng.uniform(-LATTICE_JITTER * d, LATTICE_JITTER * d, grains.shape)
+    grains[:, 2] %= W
+    diam = rng.uniform(0.9 * d, 1.1 * d, len(grains))
+    ytop = ys[-1] + 4 * d
+    lines = ["Quasi-3D column collapse grains (tools/dem3d_collapse.py)", "",
+             f"{len(floor) + len(grains)} atoms", "4 atom types", "",
+             f"{-2 * d:.9g} {length + 2 * d:.9g} xlo xhi",
+             f"{-1.5 * d:.9g} {ytop:.9g} ylo yhi",
+             f"0 {W:.9g} zlo zhi", "", "Atoms # sphere", ""]
+    k = 0
+    for p in grains:
+        k += 1
+        lines.append(f"{k} 1 {diam[k - 1]:.9g} {rho:g} {p[0]:.9g} {p[1]:.9g} {p[2]:.9g}")
+    for p in floor:
+        k += 1
+        lines.append(f"{k} 2 {d:.9g} {rho:g} {p[0]:.9g} {p[1]:.9g} {p[2]:.9g}")
+    Path(path).write_text("\n".join(lines) + "\n")
+    return dict(thickness=W, length=length, poured=len(grains), floor=len(floor), ytop=ytop)
+
+
+def _pairs3(pos, r, cutoff, period_z):
+    """Pairs (i < j) with gap < cutoff, 3D, minimum image in z (numpy cell list in x, y)."""
+    n = len(pos)
+    cell = 2 * r.max() + cutoff
+    ix = np.floor((pos[:, 0] - pos[:, 0].min()) / cell).astype(np.int64)
+    iy = np.floor((pos[:, 1] - pos[:, 1].min()) / cell).astype(np.int64)
+    ny = iy.max() + 3
+    key = ix * ny + iy
+    order = np.argsort(key)
+    skey = key[order]
+    out_i, out_j = [], []
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            nkey = (ix + dx) * ny + (iy + dy)
+            lo = np.searchsorted(skey, nkey, "left")
+            hi = np.searchsorted(skey, nkey, "right")
+            counts = hi - lo
+            if counts.sum() == 0:
+                continue
+            ii = np.repeat(np.arange(n), counts)
+            jj = order[np.concatenate([np.arange(a, b) for a, b in zip(lo, hi)])]
+            keep = ii < jj
+            out_i.append(ii[keep])
+            out_j.append(jj[keep])
+    i = np.concatenate(out_i)
+    j = np.concatenate(out_j)
+    delta = pos[i] - pos[j]
+    delta[:, 2] -= period_z * np.round(delta[:, 2] / period_z)
+    gap = np.linalg.norm(delta, axis=1) - r[i] - r[j]
+    keep = gap < cutoff
+    return i[keep], j[keep], gap[keep]
+
+
+def connected_deposit3(pos, r, d, period_z) -> np.ndarray:
+    """tools/dem_collapse.connected_deposit in 3D (periodic z): grains linked by gaps below
+    CONTACT_GAP d, the cluster holding the grain nearest x = 0."""
+    n = len(pos)
+    i, j, _ = _pairs3(pos, r, CONTACT_GAP * d, period_z)
+    parent = np.arange(n)
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for a, b in zip(i.tolist(), j.tolist()):
+        ra, rb = find(a), find(b)
+        if ra != rb:
+            parent[ra] = rb
+    roots = np.array([find(a) for a in range(n)])
+    return roots == roots[np.argmin(pos[:, 0])]
+
+
+def max_overlap3(dump: dict, d: float, period_z: float) -> float:
+    pos = np.column_stack([dump["x"], dump["y"], dump["z"]])
+    _, _, gap = _pairs3(pos, dump["radius"], 0.0, period_z)
+    return float(max(0.0, -gap.min())) / d if len(gap) else 0.0
+
+
+def analyse3(final: dict, initial: dict, width: float, d: float, period_z: float) -> dict:
+    g = final["type"] == 1
+    pos = np.column_stack([final["x"][g], final["y"][g], final["z"][g]])
+    r = final["radius"][g]
+    mask = connected_deposit3(pos, r, d, period_z)
+    edge = pos[:, 0] + r
+    front = float(edge[mask].max())
+    gi = initial["type"] == 1
+    speed = np.sqrt(final["vx"][g] ** 2 + final["vy"][g] ** 2 + final["vz"][g] ** 2)
+    return dict(
+        grains=int(g.sum()),
+        runout=(front - width) / width,
+        runout_p995=(float(np.percentile(edge, 99.5)) - width) / width,
+        runout_max=(float(edge.max()) - width) / width,
+        front=front,
+        height=float((initial["y"][gi] + initial["radius"][gi]).max()),
+        final_height=float((pos[:, 1] + r)[pos[:, 0] < 2 * d].max()),
+        max_speed=float(speed.max()),
+        max_speed_deposit=float(speed[mask].max()),
+        max_overlap_initial=max_overlap3(initial, d, period_z),
+        max_overlap_final=max_overlap3(final, d, period_z),
+        detached=int((~mask).sum()),
+        profile=surface_profile(pos[mask, 0], pos[mask, 1], r[mask], 2 * d, front),
+    )
+
+
+@dataclass
+class Dem3dResult:
+    code: str
+    aspect: float
+    width: float
+    d: float
+    thickness: float
+    grains: int
+    runout: float
+    runout_p995: float
+    runout_max: float
+    front: float
+    height: float
+    final_height: float
+    max_speed: float
+    max_speed_deposit: float
+    max_overlap_initial: float
+    max_overlap_final: float
+    detached: int
+    ke_per_grain: float
+    ke_rest: float
+    collapse_time: float          # simulated time from the gate removal to rest, s
+    wall_time: float              # s, the whole run (pour, settle, collapse)
+    params: dict = field(default_factory=dict)    # kn, kt, gamma_n, ... as the deck printed them
+    published: tuple = ()
+    profile: list = field(default_factory=list)
+    log: str = ""
+
+    @property
+    def at_rest(self) -> bool:
+        return self.ke_per_grain < self.ke_rest
+
+    def summary(self) -> str:
+        lo, hi = self.published
+        return (f"{self.code}: slab a = {self.aspect:g}, L0 = {self.width:g} m, W = {self.thickness:.4g} m, "
+                f"{self.grains} grains, wall time {self.wall_time:.1f} s\n"
+                f"  (Lf - L0)/L0 = {self.runout:.3f} (99.5 % {self.runout_p995:.3f}, max {self.runout_max:.3f}, "
+                f"{self.detached} detached); published {lo:.2f} .. {hi:.2f}\n"
+                f"  H0 = {self.height:.4g} m, final height at wall {self.final_height:.4g} m, "
+                f"collapse time {self.collapse_time:.3f} s, KE/grain {self.ke_per_grain:.2e} J "
+                f"(rest < {self.ke_rest:.2e}), max speed in deposit {self.max_speed_deposit:.2e} m/s,\n"
+                f"  max overlap/d settled {self.max_overlap_initial:.4f}, final {self.max_overlap_final:.4f}")
+
+
+def _num(pattern: str, text: str) -> float:
+    m = re.search(pattern, text, re.M)
+    if not m:
+        raise RuntimeError(f"pattern {pattern!r} not in the log")
+    return float(m.group(1))
+
+
+def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float = 0.002,
+        thickness_d: int = 4, np_: int = 1, out: str | Path | None = None, seed: int = 2024,
+        timeout: float = 600, extra_vars: dict | None = None, exe: str | None = None) -> Dem3dResult:
+    """Writes the data file, runs `code`'s deck and analyses its dumps.
+    thickness_d: slab thickness W in floor rows (W = thickness_d * 1.2 d)."""
+    deck = DECKS[code]
+    exe = exe or shutil.which(EXECUTABLES[code])
+    if exe is None:
+        raise FileNotFoundError(f"{EXECUTABLES[code]} not on PATH")
+    out = Path(out) if out else Path.cwd() / f"dem3d_{code}"
+    out.mkdir(parents=True, exist_ok=True)
+    for f in ("final.dump", "initial.dump"):
+        (out / f).unlink(missing_ok=True)
+    geo = write_data(out / "grains.data", aspect, width, d, thickness_d, seed)
+    variables = dict(data=out / "grains.data", out=out, aspect=aspect, width=width, d=d,
+                     length=f"{geo['length']:.9g}", **(extra_vars or {}))
+    cmd = [exe, "-in", str(deck), "-log", str(out / "log.txt"), "-screen", "none"]
+    if code == "liggghts":
+        cmd.append("-nocite")
+    for k, v in variables.items():
+        cmd += ["-var", k, str(v)]
+    if np_ > 1:
+        cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
+    t0 = time.time()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=out)
+    wall = time.time() - t0
+    log = (out / "log.txt").read_text(errors="replace") if (out / "log.txt").exists() else ""
+    if proc.returncode != 0 or not (out / "final.dump").exists():
+        tail = "\n".join(log.splitlines()[-30:])
+        raise RuntimeError(f"{code} failed ({proc.returncode}): {' '.join(cmd)}\n{proc.stdout[-2000:]}\n"
+                           f"{proc.stderr[-2000:]}\n{tail}")
+    res = analyse3(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d,
+                   geo["thickness"])
+    params = {k: _num(rf"^DEM3D contact:.*\b{re.escape(k)} = (\S+)", log)
+              for k in ("kn", "kt", "gamma_n", "gamma_t", "gamma_n(wall)", "gamma_t(wall)")}
+    params["dt"] = _num(r"^DEM3D timestep:.*dt = (\S+) s", log)
+    lines = "\n".join(ln for ln in log.splitlines() if ln.startswith("DEM3D "))
+    return Dem3dResult(
+        code=code, aspect=aspect, width=width, d=d, thickness=geo["thickness"], wall_time=wall,
+        ke_per_grain=_num(r"^DEM3D collapse end:.*KE/grain = (\S+) J", log),
+        ke_rest=_num(r"^DEM3D collapse end:.*rest threshold (\S+) J", log),
+        collapse_time=_num(r"^DEM3D collapse end:.*collapse time = (\S+) s", log),
+        params=params, published=published_runout_range(aspect), log=lines, **res)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--code", choices=sorted(DECKS), default="lammps")
+    p.add_argument("--aspect", type=float, default=2.0)
+    p.add_argument("--width", type=float, default=0.03, help="L0, m")
+    p.add_argument("--d", type=float, default=0.002)
+    p.add_argument("--thickness", type=int, default=4, help="slab thickness in floor rows (1.2 d each)")
+    p.add_argument("--np", type=int, default=1, dest="np_")
+    p.add_argument("--out", default=None)
+    p.add_argument("--seed", type=int, default=2024)
+    p.add_argument("--var", action="append", default=[], metavar="NAME=VALUE")
+    p.add_argument("--json", action="store_true")
+    a = p.parse_args(argv)
+    res = run(a.code, a.aspect, a.width, a.d, a.thickness, a.np_, a.out, a.seed,
+              extra_vars=dict(v.split("=", 1) for v in a.var))
+    if a.json:
+        print(json.dumps(res.__dict__, indent=1, default=str))
+    else:
+        print(res.log)
+        print(res.summary())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
