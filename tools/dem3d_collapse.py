@@ -32,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from column_collapse import published_runout_range  # noqa: E402
-from dem_collapse import CONTACT_GAP, read_dump, surface_profile  # noqa: E402
+from dem_collapse import connected_deposit, max_overlap, read_dump, surface_profile  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 DECKS = {
@@ -111,71 +111,11 @@ def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: i
     return dict(thickness=W, length=length, poured=len(grains), floor=len(floor), ytop=ytop)
 
 
-def _pairs3(pos, r, cutoff, period_z):
-    """Pairs (i < j) with gap < cutoff, 3D, minimum image in z (numpy cell list in x, y)."""
-    n = len(pos)
-    cell = 2 * r.max() + cutoff
-    ix = np.floor((pos[:, 0] - pos[:, 0].min()) / cell).astype(np.int64)
-    iy = np.floor((pos[:, 1] - pos[:, 1].min()) / cell).astype(np.int64)
-    ny = iy.max() + 3
-    key = ix * ny + iy
-    order = np.argsort(key)
-    skey = key[order]
-    out_i, out_j = [], []
-    for dx in (-1, 0, 1):
-        for dy in (-1, 0, 1):
-            nkey = (ix + dx) * ny + (iy + dy)
-            lo = np.searchsorted(skey, nkey, "left")
-            hi = np.searchsorted(skey, nkey, "right")
-            counts = hi - lo
-            if counts.sum() == 0:
-                continue
-            ii = np.repeat(np.arange(n), counts)
-            jj = order[np.concatenate([np.arange(a, b) for a, b in zip(lo, hi)])]
-            keep = ii < jj
-            out_i.append(ii[keep])
-            out_j.append(jj[keep])
-    i = np.concatenate(out_i)
-    j = np.concatenate(out_j)
-    delta = pos[i] - pos[j]
-    delta[:, 2] -= period_z * np.round(delta[:, 2] / period_z)
-    gap = np.linalg.norm(delta, axis=1) - r[i] - r[j]
-    keep = gap < cutoff
-    return i[keep], j[keep], gap[keep]
-
-
-def connected_deposit3(pos, r, d, period_z) -> np.ndarray:
-    """tools/dem_collapse.connected_deposit in 3D (periodic z): grains linked by gaps below
-    CONTACT_GAP d, the cluster holding the grain nearest x = 0."""
-    n = len(pos)
-    i, j, _ = _pairs3(pos, r, CONTACT_GAP * d, period_z)
-    parent = np.arange(n)
-
-    def find(a):
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    for a, b in zip(i.tolist(), j.tolist()):
-        ra, rb = find(a), find(b)
-        if ra != rb:
-            parent[ra] = rb
-    roots = np.array([find(a) for a in range(n)])
-    return roots == roots[np.argmin(pos[:, 0])]
-
-
-def max_overlap3(dump: dict, d: float, period_z: float) -> float:
-    pos = np.column_stack([dump["x"], dump["y"], dump["z"]])
-    _, _, gap = _pairs3(pos, dump["radius"], 0.0, period_z)
-    return float(max(0.0, -gap.min())) / d if len(gap) else 0.0
-
-
 def analyse3(final: dict, initial: dict, width: float, d: float, period_z: float) -> dict:
     g = final["type"] == 1
     pos = np.column_stack([final["x"][g], final["y"][g], final["z"][g]])
     r = final["radius"][g]
-    mask = connected_deposit3(pos, r, d, period_z)
+    mask = connected_deposit(pos, r, d, period_z)
     edge = pos[:, 0] + r
     front = float(edge[mask].max())
     gi = initial["type"] == 1
@@ -190,8 +130,8 @@ def analyse3(final: dict, initial: dict, width: float, d: float, period_z: float
         final_height=float((pos[:, 1] + r)[pos[:, 0] < 2 * d].max()),
         max_speed=float(speed.max()),
         max_speed_deposit=float(speed[mask].max()),
-        max_overlap_initial=max_overlap3(initial, d, period_z),
-        max_overlap_final=max_overlap3(final, d, period_z),
+        max_overlap_initial=max_overlap(initial, d, period_z),
+        max_overlap_final=max_overlap(final, d, period_z),
         detached=int((~mask).sum()),
         profile=surface_profile(pos[mask, 0], pos[mask, 1], r[mask], 2 * d, front),
     )

@@ -107,11 +107,15 @@ def read_dump(path: Path) -> dict:
     return {c: data[:, k] for k, c in enumerate(cols)}
 
 
-def _pairs(x, y, r, cutoff):
-    """Index pairs (i < j) with centre distance < r_i + r_j + cutoff (cell list, numpy)."""
+def contact_pairs(pos, r, cutoff, period_z=None):
+    """Index pairs (i < j) with gap (centre distance - r_i - r_j) below cutoff, and the gaps.
+    pos: N x 2 or N x 3 centres; a numpy cell list over x and y; period_z: the period of a
+    periodic z (minimum image), or None."""
+    pos = np.asarray(pos, dtype=float)
+    n = len(pos)
     cell = 2 * r.max() + cutoff
-    ix = np.floor((x - x.min()) / cell).astype(np.int64)
-    iy = np.floor((y - y.min()) / cell).astype(np.int64)
+    ix = np.floor((pos[:, 0] - pos[:, 0].min()) / cell).astype(np.int64)
+    iy = np.floor((pos[:, 1] - pos[:, 1].min()) / cell).astype(np.int64)
     ny = iy.max() + 3
     key = ix * ny + iy
     order = np.argsort(key)
@@ -125,30 +129,38 @@ def _pairs(x, y, r, cutoff):
             counts = hi - lo
             if counts.sum() == 0:
                 continue
-            ii = np.repeat(np.arange(len(x)), counts)
-            jj = order[np.concatenate([np.arange(a, b) for a, b in zip(lo, hi)])] if counts.any() else []
+            ii = np.repeat(np.arange(n), counts)
+            jj = order[np.concatenate([np.arange(a, b) for a, b in zip(lo, hi)])]
             keep = ii < jj
             out_i.append(ii[keep])
-            out_j.append(np.asarray(jj)[keep])
+            out_j.append(jj[keep])
     i = np.concatenate(out_i)
     j = np.concatenate(out_j)
-    dist = np.hypot(x[i] - x[j], y[i] - y[j])
-    gap = dist - r[i] - r[j]
+    delta = pos[i] - pos[j]
+    if period_z is not None:
+        delta[:, 2] -= period_z * np.round(delta[:, 2] / period_z)
+    gap = np.linalg.norm(delta, axis=1) - r[i] - r[j]
     keep = gap < cutoff
     return i[keep], j[keep], gap[keep]
 
 
-def max_overlap(dump: dict, d: float) -> float:
+def dump_positions(dump: dict) -> np.ndarray:
+    """Centres of a dump as N x 2 (x, y) or N x 3 when it has z."""
+    return np.column_stack([dump[c] for c in ("x", "y", "z") if c in dump])
+
+
+def max_overlap(dump: dict, d: float, period_z=None) -> float:
     """Largest grain-grain overlap (including the floor grains), as a fraction of d."""
-    _, _, gap = _pairs(dump["x"], dump["y"], dump["radius"], 0.0)
+    _, _, gap = contact_pairs(dump_positions(dump), dump["radius"], 0.0, period_z)
     return float(max(0.0, -gap.min())) / d if len(gap) else 0.0
 
 
-def connected_deposit(x, y, r, d) -> np.ndarray:
+def connected_deposit(pos, r, d, period_z=None) -> np.ndarray:
     """Boolean mask of the grains connected, through contacts (gap < CONTACT_GAP d), to the
-    grain nearest the back wall."""
-    n = len(x)
-    i, j, _ = _pairs(x, y, r, CONTACT_GAP * d)
+    grain nearest the back wall (pos: N x 2 or N x 3 centres)."""
+    pos = np.asarray(pos, dtype=float)
+    n = len(pos)
+    i, j, _ = contact_pairs(pos, r, CONTACT_GAP * d, period_z)
     parent = np.arange(n)
 
     def find(a):
@@ -162,7 +174,7 @@ def connected_deposit(x, y, r, d) -> np.ndarray:
         if ra != rb:
             parent[ra] = rb
     roots = np.array([find(a) for a in range(n)])
-    return roots == roots[np.argmin(x)]
+    return roots == roots[np.argmin(pos[:, 0])]
 
 
 def surface_profile(x, y, r, bin_width, length):
@@ -178,7 +190,7 @@ def surface_profile(x, y, r, bin_width, length):
 def analyse(final: dict, initial: dict, aspect: float, width: float, d: float) -> dict:
     grains = final["type"] == 1
     x, y, r = final["x"][grains], final["y"][grains], final["radius"][grains]
-    mask = connected_deposit(x, y, r, d)
+    mask = connected_deposit(np.column_stack([x, y]), r, d)
     edge = x + r
     front = float(edge[mask].max())
     gi = initial["type"] == 1
