@@ -443,18 +443,7 @@ void Solver<D>::sort_points_by_cell() {
     for (std::size_t i = 0; i < n; ++i) sorted[i] = field[order[i]];
     field.swap(sorted);
   };
-  permute(points_.x);
-  permute(points_.v);
-  permute(points_.C);
-  permute(points_.stress);
-  permute(points_.be);
-  permute(points_.mass);
-  permute(points_.volume0);
-  permute(points_.J);
-  permute(points_.plastic_strain);
-  permute(points_.material);
-  permute(points_.weight);
-  permute(points_.body_accel);
+  for_each_point_field(points_, [&](const char*, auto& field) { permute(field); });
 }
 
 template <int D>

@@ -32,30 +32,12 @@ constexpr const char* kFormat = "mpm-coupled-state";
 constexpr int kFormatVersion = 1;
 constexpr const char* kKind = "MPM state file";
 
-/// Calls f(name, field) for every field of the points, in file order.
-template <class P, class F>
-void for_each_field(P& pts, F&& f) {
-  static_assert(sizeof(pts) == 12 * sizeof(std::vector<double>), "a Particles field was added: list it here");
-  f("x", pts.x);
-  f("v", pts.v);
-  f("C", pts.C);
-  f("stress", pts.stress);
-  f("be", pts.be);
-  f("mass", pts.mass);
-  f("volume0", pts.volume0);
-  f("J", pts.J);
-  f("plastic_strain", pts.plastic_strain);
-  f("material", pts.material);
-  f("weight", pts.weight);
-  f("body_accel", pts.body_accel);
-}
-
 /// Empty if the state's arrays have consistent lengths, else what is wrong.
 template <int D>
 std::string inconsistency(const ContinuumState<D>& s) {
   std::string why;
   const std::size_t n = s.points.x.size();
-  for_each_field(s.points, [&](const char* name, const auto& field) {
+  for_each_point_field(s.points, [&](const char* name, const auto& field) {
     if (why.empty() && field.size() != n)
       why = "points field '" + std::string(name) + "' has " + std::to_string(field.size()) + " values for " +
             std::to_string(n) + " points";
@@ -216,7 +198,7 @@ void save_state(const std::string& path, const ContinuumState<D>& s) {
 
       h5::Group group = h5::create_group(h5, root, "points");
       const h5::Loc points{group.get(), "/points"};
-      for_each_field(s.points, [&](const char* name, const auto& field) { write_array(h5, points, name, field); });
+      for_each_point_field(s.points, [&](const char* name, const auto& field) { write_array(h5, points, name, field); });
       write_array(h5, root, "zones", s.zones);
       write_array(h5, root, "support_nodes", s.support_nodes);
       write_array(h5, root, "support_forces", s.support_forces);
@@ -266,7 +248,7 @@ ContinuumState<D> load_state(const std::string& path) {
     {
       h5::Group group(h5.id(H5Gopen2(root, "points", H5P_DEFAULT), "open group", "/points"));
       const h5::Loc points{group.get(), "/points"};
-      for_each_field(s.points, [&](const char* name, auto& field) { read_array(h5, points, name, field); });
+      for_each_point_field(s.points, [&](const char* name, auto& field) { read_array(h5, points, name, field); });
     }
     read_array(h5, top, "zones", s.zones);
     read_array(h5, top, "support_nodes", s.support_nodes);

@@ -46,4 +46,23 @@ struct Particles {
   }
 };
 
+/// Calls f(name, field) for every field of the points (const or not), in a fixed order: the
+/// one list of fields for code that must treat all of them alike (sorting, state files).
+template <class P, class F>
+void for_each_point_field(P& pts, F&& f) {
+  static_assert(sizeof(pts) == 12 * sizeof(std::vector<double>), "a Particles field was added: list it here");
+  f("x", pts.x);
+  f("v", pts.v);
+  f("C", pts.C);
+  f("stress", pts.stress);
+  f("be", pts.be);
+  f("mass", pts.mass);
+  f("volume0", pts.volume0);
+  f("J", pts.J);
+  f("plastic_strain", pts.plastic_strain);
+  f("material", pts.material);
+  f("weight", pts.weight);
+  f("body_accel", pts.body_accel);
+}
+
 }  // namespace mpm
