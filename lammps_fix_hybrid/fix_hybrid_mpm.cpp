@@ -34,6 +34,8 @@
 #include "version.h"
 
 #include "coupler/conversion.hpp"
+#include "coupler/enrichment.hpp"
+#include "coupler/oracle.hpp"
 #include "coupler/protocol.hpp"
 #include "coupler/transfer.hpp"
 #include "coupler/version.hpp"
@@ -51,17 +53,20 @@ using namespace LAMMPS_NS;
 using namespace FixConst;
 using MathConst::MY_PI;
 
+static constexpr double BIG = 1.0e20;
+
 namespace {
 
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
     "grain_density, critical_packing, wall, container, cfl, pic, support, points_per_cell, inertia, output, "
-    "mpm_state, every, timeout, idle";
+    "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, grain_type, seed";
 
 // Thermo vector entries (docs/fix_hybrid_mpm.md)
 enum {
   kVecExchanges, kVecCoupledGrains, kVecPoints, kVecSharedNodes, kVecMismatch, kVecSubsteps, kVecMpmDt,
-  kVecMass, kVecPx, kVecPy, kVecPz, kVecLx, kVecLy, kVecLz, kVecContinuumKE, kVecSize
+  kVecMass, kVecPx, kVecPy, kVecPz, kVecLx, kVecLy, kVecLz, kVecContinuumKE, kVecContinuumCells, kVecHybridCells,
+  kVecDiscreteCells, kVecSize
 };
 
 template <int D>
@@ -87,10 +92,12 @@ Fix *FixHybridMPM::creator(LAMMPS *lmp, int narg, char **arg)
 
 FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), cell(-1.0), reply_timeout(30.0), idle_timeout(600.0),
-    model(coupler::kModelDruckerPrager), every(1), hybrid_width(2), inertia(-1.0),
-    settings(new coupler::ContinuumSettings), diameter_given(false), density_given(false), exchanges(0),
+    model(coupler::kModelDruckerPrager), every(1), hybrid_width(2), adapt_every(0), grain_type(0),
+    template_seed(12345), inertia(-1.0),
+    settings(new coupler::ContinuumSettings), oracle(new coupler::OracleSettings), diameter_given(false), density_given(false), exchanges(0),
     restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
-    converted(false), convert_pending(false), restored(false), state_loaded(false), clock_time(0.0),
+    converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle), new_grain_mask(1),
+    polydispersity(0.0), restored(false), state_loaded(false), clock_time(0.0),
     clock_step(-1), clock_dt(0.0),
     stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1)
 {
@@ -192,7 +199,11 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
         illegal(fmt::format("keyword 'output': the file name is longer than {} characters", sizeof(c.output_path) - 1));
       coupler::set_text(c.output_path, output_path);
       used = 3;
-    } else if (key == "mpm_state") mpm_state_path = val;
+    } else if (key == "adaptive") adapt_every = integer(key, val);
+    else if (set_oracle_keyword(key, val)) {
+    } else if (key == "grain_type") grain_type = integer(key, val);
+    else if (key == "seed") template_seed = integer(key, val);
+    else if (key == "mpm_state") mpm_state_path = val;
     else if (key == "every") every = integer(key, val);
     else if (key == "timeout") reply_timeout = positive(key, val, "seconds");
     else if (key == "idle") {
@@ -208,6 +219,12 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     if (domain->find_region(rid) < 0)
       illegal(fmt::format("continuum region '{}' does not exist (define it with the region command first)", rid));
   if (inertia < 0.0) inertia = domain->dimension == 2 ? 0.5 : 0.4;
+  if (adapt_every > 0 && adapt_every % every != 0)
+    illegal(fmt::format("keyword 'adaptive' ({} steps) must be a multiple of 'every' ({}): zones change right "
+                        "after an exchange", adapt_every, every));
+  check_oracle();
+  if (grain_type > atom->ntypes)
+    illegal(fmt::format("keyword 'grain_type' {} is not an atom type (1 to {})", grain_type, atom->ntypes));
 
   nevery = 1;               // the support force acts every step; exchanges every `every` steps
   scalar_flag = 1;           // f_ID = number of completed exchanges with the MPM process
@@ -219,7 +236,8 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   restart_global = 1;
   restart_peratom = 1;
   restart_file = 1;          // the MPM process saves its state next to every restart file
-  force_reneighbor = 1;      // the conversion deletes grains at a pre_exchange
+  force_reneighbor = 1;      // rezones delete and create grains at a pre_exchange
+  create_attribute = 1;      // grains made from points get a weight and no support (set_arrays)
   next_reneighbor = -1;
   maxexchange = 4;
 
@@ -229,7 +247,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   for (int i = 0; i < atom->nlocal; i++) set_arrays(i);
 
   // per-atom stress*volume for the Love-Weber stress of new material points
-  if (!region_ids.empty()) {
+  if (!region_ids.empty() || adapt_every > 0) {
     stress_id = utils::strdup(std::string(id) + "_hybrid_stress");
     modify->add_compute(fmt::format("{} all stress/atom NULL virial", stress_id));
   }
@@ -283,10 +301,10 @@ void FixHybridMPM::init()
     error->all(FLERR, "Fix hybrid/mpm requires units si (the MPM process works in SI units)");
   if (atom->molecular != Atom::ATOMIC)
     error->all(FLERR, "Fix hybrid/mpm does not support molecular systems (grains only)");
-  if (!region_ids.empty()) {
+  if (!region_ids.empty() || adapt_every > 0) {
     for (int d = 0; d < domain->dimension; d++)
       if (domain->boundary[d][0] != 1 || domain->boundary[d][1] != 1)
-        error->all(FLERR, fmt::format("Fix hybrid/mpm with continuum regions needs fixed boundaries ('f') in "
+        error->all(FLERR, fmt::format("Fix hybrid/mpm with continuum regions or adaptive zones needs fixed boundaries ('f') in "
                                       "x, y{}: the continuum's grid covers the box and has walls at its faces "
                                       "(use boundary f f {})",
                                       domain->dimension == 3 ? ", z" : "", domain->dimension == 3 ? "f" : "p"));
@@ -317,6 +335,78 @@ void FixHybridMPM::grain_defaults()
   const bigint n = group->count(igroup);
   if (n > 0 && !diameter_given) settings->grain_diameter = all[0] / n;
   if (all[2] > 0 && !density_given) settings->grain_density = all[1] / all[2];
+
+  // grains made from points: the size spread, type and groups of the grains there are
+  double range[2] = {-BIG, -BIG}, range_all[2];    // -min diameter, max diameter
+  int common_mask = ~0, all_mask = ~0, smallest_type = atom->ntypes + 1, type_all = 0;
+  for (int i = 0; i < atom->nlocal; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    range[0] = std::max(range[0], -2.0 * atom->radius[i]);
+    range[1] = std::max(range[1], 2.0 * atom->radius[i]);
+    common_mask &= atom->mask[i];
+    smallest_type = std::min(smallest_type, atom->type[i]);
+  }
+  MPI_Allreduce(range, range_all, 2, MPI_DOUBLE, MPI_MAX, world);
+  MPI_Allreduce(&common_mask, &all_mask, 1, MPI_INT, MPI_BAND, world);
+  MPI_Allreduce(&smallest_type, &type_all, 1, MPI_INT, MPI_MIN, world);
+  if (n > 0) {
+    const double dmin = -range_all[0], dmax = range_all[1];
+    // the template's radii are uniform in mean (1 +- p); it needs p < 0.5
+    polydispersity = std::min(0.45, (dmax - dmin) / (dmax + dmin));
+    new_grain_mask = all_mask | 1 | groupbit;
+    if (grain_type == 0) grain_type = type_all;
+  } else {
+    new_grain_mask = 1 | groupbit;
+    if (grain_type == 0) grain_type = 1;
+  }
+}
+
+/* ----------------------------------------------------------------------
+   the zone oracle's keywords: on the fix line and with fix_modify
+------------------------------------------------------------------------- */
+
+bool FixHybridMPM::set_oracle_keyword(const std::string &key, const std::string &val)
+{
+  double *target = nullptr;
+  double lo = 0.0, hi = BIG;
+  const char *what = "";
+  if (key == "depth") target = &oracle->continuum_depth, what = "continuum deeper than depth + band, m";
+  else if (key == "band") target = &oracle->band, what = "half width of the hybrid band, m";
+  else if (key == "surface_packing") target = &oracle->surface_packing, hi = 1.0, what = "a packing fraction";
+  else if (key == "dilute") target = &oracle->dilute_packing, hi = 1.0, what = "a packing fraction";
+  else if (key == "shear_rate") target = &oracle->max_shear_rate, what = "cells shearing faster are discrete, 1/s";
+  else return false;
+  if (!utils::is_double(val)) illegal(fmt::format("keyword '{}' needs a number, not '{}'", key, val));
+  const double v = utils::numeric(FLERR, val.c_str(), false, lmp);
+  if (!(v > lo && v < hi))
+    illegal(fmt::format("keyword '{}' ({}) must be in ({}, {}), not {}", key, what, lo, hi == BIG ? "inf" : "1", val));
+  *target = v;
+  return true;
+}
+
+void FixHybridMPM::check_oracle()
+{
+  if (adapt_every <= 0) return;
+  // Defaults: continuum three cells below surfaces and walls, a hybrid band one cell wide on either side.
+  if (oracle->band <= 0.0) oracle->band = cell;
+  if (oracle->continuum_depth <= 0.0) oracle->continuum_depth = 3.0 * cell;
+  // A continuum cell never borders a discrete one if the band is wider than the distance of
+  // neighbouring cell centres (coupler/oracle.hpp, update_zones)
+  const double closest = 0.5 * sqrt(static_cast<double>(domain->dimension)) * cell;
+  if (!(oracle->band > closest))
+    illegal(fmt::format("keyword 'band' ({}) must exceed {:.4g} (sqrt({})/2 cells), or continuum cells may "
+                        "border discrete ones", oracle->band, closest, domain->dimension));
+  if (!(oracle->continuum_depth > oracle->band))
+    illegal(fmt::format("keyword 'depth' ({}) must exceed 'band' ({}): the cells at the free surface must stay "
+                        "discrete", oracle->continuum_depth, oracle->band));
+}
+
+int FixHybridMPM::modify_param(int narg, char **arg)
+{
+  // fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g): between runs
+  if (narg < 2 || !set_oracle_keyword(arg[0], arg[1])) return 0;
+  check_oracle();
+  return 2;
 }
 
 /* ---------------------------------------------------------------------- */
@@ -407,10 +497,7 @@ void FixHybridMPM::compute_zones()
   if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
   if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, cell));
   else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, cell));
-  if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
-  if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, cell));
-  else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, cell));
-  if (comm->me == 0) {
+  if (comm->me == 0 && !region_ids.empty()) {
     // cells of the box only (the padding cells around it are continuum by convention)
     bigint n[3] = {0, 0, 0};
     double centre[3] = {0, 0, 0};
@@ -464,6 +551,7 @@ double FixHybridMPM::next_exchange_time(bool force_output) const
 {
   const bigint now = update->ntimestep, next = now + every;
   if (force_output) return -1.0;
+  if (adapt_every > 0 && converted && now % adapt_every == 0 && now < update->laststep) return -1.0;    // a rezone
   if (output->restart_flag && output->next_restart >= now && output->next_restart < next) return -1.0;
   if (next <= update->laststep) return dem_time(next);
   if (settings->output_every > 0 && update->laststep > now) return dem_time(update->laststep);    // end-of-run frame
@@ -522,94 +610,361 @@ void FixHybridMPM::setup(int /*vflag*/)
   if (!link) connect();
   if (zones.empty()) compute_zones();
   if (restored && !state_loaded) load_mpm_state();
-  if (converted || region_ids.empty()) return;
-  // Love-Weber stress of the grains about to become points: per-atom virial of this
-  // (setup) step, kept by local index until the conversion at the next pre_exchange
-  // (atoms are neither sorted nor exchanged in between)
+  // a rezone left pending at the end of the last run refers to atom indices that setup has
+  // since reordered; the oracle runs again at its next step
+  rezone_pending = false;
+  if (!converted && (!region_ids.empty() || adapt_every > 0))
+    schedule_rezone(region_ids.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
+  if (adapt_every > 0) {
+    // the Love-Weber stress of the first oracle step needs its per-atom virial
+    const bigint first = (update->ntimestep / adapt_every + 1) * adapt_every;
+    modify->compute[modify->find_compute(stress_id)]->addstep(first);
+  }
+}
+
+/* ----------------------------------------------------------------------
+   a rezone at the next step's pre_exchange, with the Love-Weber stress of
+   this step (kept by local index: atoms are neither sorted nor exchanged
+   until then)
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::schedule_rezone(int source)
+{
+  store_atom_stress();
+  rezone_pending = true;
+  rezone_source = source;
+  next_reneighbor = update->ntimestep + 1;
+}
+
+void FixHybridMPM::store_atom_stress()
+{
   Compute *c = modify->compute[modify->find_compute(stress_id)];
   c->compute_peratom();
-  setup_stress.assign(static_cast<std::size_t>(atom->nlocal) * 6, 0.0);
+  atom_stress.assign(static_cast<std::size_t>(atom->nlocal) * 6, 0.0);
   for (int i = 0; i < atom->nlocal; i++)
-    for (int k = 0; k < 6; k++) setup_stress[6 * i + k] = c->array_atom[i][k];
-  convert_pending = true;
-  next_reneighbor = update->ntimestep + 1;
+    for (int k = 0; k < 6; k++) atom_stress[6 * i + k] = c->array_atom[i][k];
 }
 
 /* ---------------------------------------------------------------------- */
 
 void FixHybridMPM::pre_exchange()
 {
-  if (!convert_pending || update->ntimestep != next_reneighbor) return;
-  if (domain->dimension == 2) convert<2>();
-  else convert<3>();
-  convert_pending = false;
+  if (!rezone_pending || update->ntimestep != next_reneighbor) return;
+  if (domain->dimension == 2) rezone<2>(rezone_source);
+  else rezone<3>(rezone_source);
+  rezone_pending = false;
   converted = true;
-  setup_stress.clear();
-  setup_stress.shrink_to_fit();
+  atom_stress.clear();
+  atom_stress.shrink_to_fit();
 }
 
 /* ----------------------------------------------------------------------
-   grains of continuum cells become material points, grains of hybrid cells
-   keep the share `weight` of their mass; the MPM process builds the points
-   from per-cell sums (mass, first moment, momentum, angular momentum,
-   stress*volume), so the totals carry over exactly
+   the volume of this rank's grains per grid cell (the oracle's packing
+   fraction), sparse: only cells holding grains
 ------------------------------------------------------------------------- */
 
 template <int D>
-void FixHybridMPM::convert()
+std::vector<coupler::CellVolume> FixHybridMPM::cell_volumes()
 {
-  const auto grid = box_grid<D>(domain, cell);
-  const double w = settings->grain_weight;
+  const auto &grid = transfer<D>().grid();
+  std::map<std::size_t, double> volume;
+  for (int i = 0; i < atom->nlocal; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(atom->x[i]));
+    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) continue;
+    volume[coupler::cell_index<D>(grid, c)] += coupler::grain_volume<D>(atom->radius[i]);
+  }
+  std::vector<coupler::CellVolume> out;
+  out.reserve(volume.size());
+  for (const auto &kv : volume) {
+    coupler::CellVolume v;
+    v.cell = kv.first;
+    v.volume = kv.second;
+    out.push_back(v);
+  }
+  return out;
+}
+
+template <int D>
+const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
+{
+  // 10 x 10 disks or 6 x 6 x 6 balls per period: tiles much larger than a grain, made the
+  // same on every rank (deterministic in the seed)
+  if constexpr (D == 2) {
+    if (!template2)
+      template2 = std::make_unique<coupler::PackingTemplate<2>>(
+          coupler::make_packing_template<2>(10, polydispersity, static_cast<std::uint32_t>(template_seed)));
+    return *template2;
+  } else {
+    if (!template3)
+      template3 = std::make_unique<coupler::PackingTemplate<3>>(
+          coupler::make_packing_template<3>(6, polydispersity, static_cast<std::uint32_t>(template_seed)));
+    return *template3;
+  }
+}
+
+/* ----------------------------------------------------------------------
+   enrichment: grains for the cells that have points and want grains, cut
+   from the packing template where the points are and where no grain of any
+   rank is in the way, carrying exactly the share of the points' material
+   the zone gives grains; every rank makes the ones in its sub-domain.
+   Returns one byte per cell: grains were made there.
+------------------------------------------------------------------------- */
+
+template <int D>
+std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells, bigint &made)
+{
+  const auto &grid = transfer<D>().grid();
+  std::vector<signed char> made_in_cell(cells.size(), 0);
+  made = 0;
+  bool any = false;
+  for (const auto &c : cells) any = any || c.make_grains;
+  if (!any) return made_in_cell;
+
+  // candidates of every such cell (the same list on every rank)
+  const auto &tmpl = packing_template<D>();
+  std::vector<std::vector<coupler::NewGrain<D>>> candidates(cells.size());
+  std::map<std::size_t, std::vector<std::pair<std::size_t, std::size_t>>> by_cell;    // cell -> (k, index)
+  double largest = 0.0;
+  for (std::size_t k = 0; k < cells.size(); ++k) {
+    if (!cells[k].make_grains) continue;
+    const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
+    for (const auto &g : coupler::template_candidates<D>(cells[k].cell, grid, tmpl, settings->grain_diameter)) {
+      if (!(coupler::occupancy_bit<D>(grid, c, g.x) & cells[k].occupancy)) continue;    // no material there
+      bool in_box = true;
+      for (int a = 0; a < D; ++a)
+        in_box = in_box && g.x[a] - g.radius >= domain->boxlo[a] && g.x[a] + g.radius <= domain->boxhi[a];
+      if (!in_box) continue;
+      by_cell[cells[k].cell].emplace_back(k, candidates[k].size());
+      candidates[k].push_back(g);
+      largest = std::max(largest, g.radius);
+    }
+  }
+  // flag the candidates any grain (of any group: walls of frozen grains too) overlaps
+  std::vector<std::size_t> offset(cells.size() + 1, 0);
+  for (std::size_t k = 0; k < cells.size(); ++k) offset[k + 1] = offset[k] + candidates[k].size();
+  std::vector<int> blocked(offset.back(), 0), blocked_all(offset.back(), 0);
+  double **x = atom->x;
+  for (int i = 0; i < atom->nlocal; i++) {
+    const Vec<D> xi = Eigen::Map<const Vec<D>>(x[i]);
+    const int reach = static_cast<int>(std::ceil((atom->radius[i] + largest) / grid.dx));
+    const Eigen::Matrix<int, D, 1> ci = coupler::cell_of<D>(grid, xi);
+    int span = 1;
+    for (int a = 0; a < D; ++a) span *= 2 * reach + 1;
+    for (int o = 0; o < span; ++o) {
+      Eigen::Matrix<int, D, 1> cj;
+      bool on_grid = true;
+      for (int a = 0, r = o; a < D; ++a, r /= 2 * reach + 1) {
+        cj[a] = ci[a] + r % (2 * reach + 1) - reach;
+        on_grid = on_grid && cj[a] >= 0 && cj[a] < grid.dims[a] - 1;
+      }
+      if (!on_grid) continue;
+      const auto it = by_cell.find(coupler::cell_index<D>(grid, cj));
+      if (it == by_cell.end()) continue;
+      for (const auto &[k, j] : it->second) {
+        const auto &g = candidates[k][j];
+        const double touch = g.radius + atom->radius[i];
+        if ((g.x - xi).squaredNorm() < touch * touch) blocked[offset[k] + j] = 1;
+      }
+    }
+  }
+  MPI_Allreduce(blocked.data(), blocked_all.data(), static_cast<int>(blocked.size()), MPI_INT, MPI_MAX, world);
+
+  // the free candidates of each cell take the cell's target; each rank makes its own
+  const double zmid = 0.5 * (domain->boxlo[2] + domain->boxhi[2]);
+  for (std::size_t k = 0; k < cells.size(); ++k) {
+    if (!cells[k].make_grains) continue;
+    std::vector<coupler::NewGrain<D>> kept;
+    for (std::size_t j = 0; j < candidates[k].size(); ++j)
+      if (!blocked_all[offset[k] + j]) kept.push_back(candidates[k][j]);
+    const Eigen::Matrix<double, D, D> gradient = Eigen::Map<const Eigen::Matrix<double, D, D>>(cells[k].gradient);
+    if (!coupler::set_grain_moments<D>(kept, cells[k].target, grid, settings->grain_density, inertia, gradient))
+      continue;
+    made_in_cell[k] = 1;
+    for (const auto &g : kept) {
+      double coord[3] = {0.0, 0.0, zmid};
+      for (int a = 0; a < D; ++a) coord[a] = g.x[a];
+      bool mine = true;
+      for (int a = 0; a < D; ++a) mine = mine && coord[a] >= domain->sublo[a] && coord[a] < domain->subhi[a];
+      if (!mine) continue;
+      atom->avec->create_atom(grain_type, coord);
+      const int n = atom->nlocal - 1;
+      atom->mask[n] = new_grain_mask;
+      atom->radius[n] = g.radius;
+      atom->rmass[n] = g.mass;
+      for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? g.v[a] : 0.0, atom->omega[n][a] = 0.0;
+      if constexpr (D == 2) atom->omega[n][2] = g.omega[0];
+      else
+        for (int a = 0; a < 3; a++) atom->omega[n][a] = g.omega[a];
+      modify->create_attribute(n);    // every fix's per-atom data (pair history, ours)
+      weight[n] = cells[k].grain_weight;
+      made++;
+    }
+  }
+  return made_in_cell;
+}
+
+/* ----------------------------------------------------------------------
+   a rezone (coupler/protocol.hpp): the zones change (oracle, or the map of
+   the continuum regions at the start), and the material of every cell whose
+   zone changed moves between grains and points with exact mass, momentum
+   and angular momentum: grains are deleted (homogenisation), made from the
+   points (enrichment) or take a new share of the cell's material; the MPM
+   process does the same for the points. Love-Weber stress of the grains
+   goes into the new points.
+------------------------------------------------------------------------- */
+
+template <int D>
+void FixHybridMPM::rezone(int source)
+{
+  const auto &grid = transfer<D>().grid();
+  const std::string at = " of the rezone at step " + std::to_string(update->ntimestep);
+  // as fix pour: atoms are created and deleted now, the ghosts are rebuilt after
+  if (atom->map_style != Atom::MAP_NONE) atom->map_clear();
+  atom->nghost = 0;
+  atom->avec->clear_bonus();
+
+  int status = 0;
+  std::string what;
+  coupler::StepAck ack;
+  auto mpm_error = [&](const coupler::Message &m) {
+    ack = m.as<coupler::StepAck>();
+    status = 2;
+    what = "the MPM process could not rezone: " + coupler::get_text(ack.message);
+  };
+
+  double grains_before[7], grains_after[7];
+  grain_totals(grains_before);
+  // the support force acted between grains and points that change now: both sides drop it
+  for (int i = 0; i < atom->nlocal; i++) support[i][0] = support[i][1] = support[i][2] = 0.0;
+  supported.clear();
+
+  // 1. zones: the grains' volume per cell goes to the MPM process, which runs the oracle
+  const std::vector<coupler::CellVolume> volumes = cell_volumes<D>();
+  std::vector<signed char> new_zones;
+  std::vector<coupler::RezoneCell<D>> cells;
+  try {
+    if (comm->me == 0) {
+      coupler::StepHeader h = step_header(coupler::kStepRezone);
+      h.zone_source = source;
+      link->send_struct(0, coupler::kTagStep, h, "the rezone header" + at);
+      if (source == coupler::kZonesGiven) link->send_array(0, coupler::kTagZones, zones, "the zone map" + at);
+      else link->send_struct(0, coupler::kTagOracle, *oracle, "the oracle settings" + at);
+    }
+    link->send_array(0, coupler::kTagVolumes, volumes, "the grain volumes" + at);
+    const coupler::Message m = link->receive(0, {coupler::kTagZones, coupler::kTagStepAck}, "the new zone map" + at);
+    if (m.tag == coupler::kTagStepAck) mpm_error(m);
+    else {
+      new_zones = m.as_array<signed char>();
+      if (new_zones.size() != zones.size())
+        throw coupler::PeerError(fmt::format("protocol error: a zone map of {} cells for a grid of {}",
+                                             new_zones.size(), zones.size()));
+      cells = link->receive(0, {coupler::kTagRezoneCells}, "the cells to rezone" + at)
+                  .as_array<coupler::RezoneCell<D>>();
+    }
+  } catch (const coupler::PeerError &e) {
+    status = 1;
+    what = e.what();
+  }
+  check_all(status, what);
+  zones = std::move(new_zones);
+
+  // 2. enrichment (collective over the DEM ranks)
+  const int nlocal_old = atom->nlocal;
+  bigint made_local = 0;
+  const std::vector<signed char> made = make_grains<D>(cells, made_local);
+
+  // 3. the sums of the grains already in the moving cells
+  std::map<std::uint64_t, std::size_t> slot;
+  for (std::size_t k = 0; k < cells.size(); ++k) slot.emplace(cells[k].cell, k);
+  auto cell_of_atom = [&](int i) -> std::int64_t {
+    const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(atom->x[i]));
+    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return -1;
+    const auto it = slot.find(coupler::cell_index<D>(grid, c));
+    return it == slot.end() ? -1 : static_cast<std::int64_t>(it->second);
+  };
   double **x = atom->x, **v = atom->v, **omega = atom->omega;
   double *rmass = atom->rmass, *radius = atom->radius;
-  int *mask = atom->mask;
-  const int nlocal = atom->nlocal;
-
-  std::map<std::size_t, coupler::CellMoments<D>> cells;
-  std::vector<int> remove(nlocal, 0);
-  bigint n_hybrid = 0;
-  for (int i = 0; i < nlocal; i++) {
-    if (!(mask[i] & groupbit) || weight[i] < 1.0) continue;
-    const Vec<D> xi = Eigen::Map<const Vec<D>>(x[i]);
-    const std::size_t c = coupler::cell_index<D>(grid, coupler::cell_of<D>(grid, xi));
-    const int z = zones[c];
-    if (z == coupler::kDiscrete) continue;
+  std::map<std::size_t, coupler::BodySums<D>> sums;
+  for (int i = 0; i < nlocal_old; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    const std::int64_t k = cell_of_atom(i);
+    if (k < 0) continue;
     const double I = inertia * rmass[i] * radius[i] * radius[i];
     coupler::Spin<D> spin;
     if constexpr (D == 2) spin[0] = I * omega[i][2];
     else spin = I * Eigen::Map<const Eigen::Vector3d>(omega[i]);
     Eigen::Matrix<double, D, D> sv;
-    const double *s = &setup_stress[6 * i];    // xx yy zz xy xz yz
-    if constexpr (D == 2) sv << s[0], s[3], s[3], s[1];
-    else sv << s[0], s[3], s[4], s[3], s[1], s[5], s[4], s[5], s[2];
-    auto &m = cells[c];
-    m.cell = c;
-    m.add_grain(xi, Eigen::Map<const Vec<D>>(v[i]), rmass[i], spin, sv);
-    if (z == coupler::kContinuum) remove[i] = 1;
-    else {
-      rmass[i] *= w;    // the grain keeps its share; the points take the rest
-      weight[i] = w;
-      n_hybrid++;
-    }
+    const double *sa = &atom_stress[6 * i];    // xx yy zz xy xz yz
+    if constexpr (D == 2) sv << sa[0], sa[3], sa[3], sa[1];
+    else sv << sa[0], sa[3], sa[4], sa[3], sa[1], sa[5], sa[4], sa[5], sa[2];
+    const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
+    auto &sum = sums[static_cast<std::size_t>(k)];
+    sum.moments.cell = cells[k].cell;
+    sum.add_body(Eigen::Map<const Vec<D>>(x[i]), Eigen::Map<const Vec<D>>(v[i]), rmass[i], spin,
+                 inertia * radius[i] * radius[i], sv, coupler::cell_center<D>(grid, c));
   }
-  std::vector<coupler::CellMoments<D>> records;
-  records.reserve(cells.size());
-  for (const auto &kv : cells) records.push_back(kv.second);
+  std::vector<coupler::BodySums<D>> sum_list;
+  for (const auto &kv : sums) sum_list.push_back(kv.second);
 
-  int status = 0;
-  std::string what;
-  coupler::StepAck ack;
+  // 4. the MPM process answers what the grains of each cell become
+  std::vector<coupler::GrainCorrection<D>> corrections;
   try {
-    if (comm->me == 0) {
-      coupler::StepHeader h = step_header(coupler::kStepConvert);
-      link->send_struct(0, coupler::kTagStep, h, "the conversion header");
-      link->send_array(0, coupler::kTagZones, zones, "the zone map");
+    link->send_array(0, coupler::kTagGrainSums, sum_list, "the grain sums" + at);
+    if (comm->me == 0) link->send_array(0, coupler::kTagCreated, made, "the cells with new grains" + at);
+    const coupler::Message m =
+        link->receive(0, {coupler::kTagCorrections, coupler::kTagStepAck}, "the grain corrections" + at);
+    if (m.tag == coupler::kTagStepAck) mpm_error(m);
+    else corrections = m.as_array<coupler::GrainCorrection<D>>();
+  } catch (const coupler::PeerError &e) {
+    status = 1;
+    what = e.what();
+  }
+  check_all(status, what);
+
+  // 5. apply them: delete, or scale and add the rigid velocity increment
+  std::map<std::uint64_t, const coupler::GrainCorrection<D> *> correction_of;
+  for (const auto &gc : corrections) correction_of[gc.cell] = &gc;
+  std::vector<char> remove(nlocal_old, 0);
+  bigint hybrid_local = 0;
+  for (int i = 0; i < nlocal_old; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    const std::int64_t k = cell_of_atom(i);
+    if (k < 0) continue;
+    const auto it = correction_of.find(cells[k].cell);
+    if (it == correction_of.end()) continue;
+    const coupler::GrainCorrection<D> &gc = *it->second;
+    if (gc.remove) {
+      remove[i] = 1;
+      continue;
     }
-    link->send_array(0, coupler::kTagCells, records, "the grains of the continuum cells");
-    ack = link->receive(0, {coupler::kTagStepAck}, "the material points made from the grains")
-              .as<coupler::StepAck>();
-    if (ack.status != 0) status = 2, what = "the MPM process could not make material points from the grains: " +
-                                             coupler::get_text(ack.message);
+    coupler::RigidCorrection<D> fix;
+    fix.mass_factor = gc.mass_factor;
+    fix.velocity = Eigen::Map<const Vec<D>>(gc.velocity);
+    fix.omega = Eigen::Map<const coupler::Spin<D>>(gc.omega);
+    fix.centre = Eigen::Map<const Vec<D>>(gc.centre);
+    const Vec<D> dv = fix.increment(Eigen::Map<const Vec<D>>(x[i]));
+    for (int a = 0; a < D; ++a) v[i][a] += dv[a];
+    if constexpr (D == 2) omega[i][2] += fix.omega[0];
+    else
+      for (int a = 0; a < 3; a++) omega[i][a] += fix.omega[a];
+    rmass[i] *= gc.mass_factor;
+    weight[i] = gc.weight;
+    if (gc.weight < 1.0) hybrid_local++;
+  }
+  bigint deleted_local = 0;
+  AtomVec *avec = atom->avec;
+  for (int i = nlocal_old - 1; i >= 0; i--)    // as fix evaporate: the last atom fills the gap
+    if (remove[i]) {
+      avec->copy(atom->nlocal - 1, i, 1);
+      atom->nlocal--;
+      deleted_local++;
+    }
+
+  // 5. the acknowledgement with the continuum's totals
+  try {
+    ack = link->receive(0, {coupler::kTagStepAck}, "the rezone's acknowledgement" + at).as<coupler::StepAck>();
+    if (ack.status != 0) status = 2, what = "the MPM process could not rezone: " + coupler::get_text(ack.message);
   } catch (const coupler::PeerError &e) {
     status = 1;
     what = e.what();
@@ -617,27 +972,31 @@ void FixHybridMPM::convert()
   check_all(status, what);
   *last_ack = ack;
 
-  // delete the grains that became points (as fix evaporate does)
-  bigint ndelete_local = 0, ndelete = 0, nhybrid = 0;
-  AtomVec *avec = atom->avec;
-  for (int i = nlocal - 1; i >= 0; i--)
-    if (remove[i]) {
-      avec->copy(atom->nlocal - 1, i, 1);
-      atom->nlocal--;
-      ndelete_local++;
-    }
-  MPI_Allreduce(&ndelete_local, &ndelete, 1, MPI_LMP_BIGINT, MPI_SUM, world);
-  MPI_Allreduce(&n_hybrid, &nhybrid, 1, MPI_LMP_BIGINT, MPI_SUM, world);
-  atom->natoms -= ndelete;
-  if (ndelete && atom->map_style != Atom::MAP_NONE) {
-    atom->nghost = 0;
+  grain_totals(grains_after);
+  bigint local[3] = {deleted_local, made_local, hybrid_local}, all[3];
+  MPI_Allreduce(local, all, 3, MPI_LMP_BIGINT, MPI_SUM, world);
+  atom->natoms += all[1] - all[0];
+  if (all[1] > 0) atom->tag_extend();
+  if (atom->map_style != Atom::MAP_NONE) {
     atom->map_init();
     atom->map_set();
   }
   if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: step {}: {} grains became {} material points, {} grains "
-                                    "are hybrid (weight {})\n",
-                                    update->ntimestep, ndelete, ack.points, nhybrid, w));
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: step {}: {} grains became {} material points, {} grains are "
+                                    "hybrid (weight {}), {} grains made from points; {} cells moved; grid cells "
+                                    "in the box: {} continuum, {} hybrid, {} discrete\n",
+                                    update->ntimestep, all[0], ack.points_made, all[2], settings->grain_weight, all[1],
+                                    ack.moved_cells, ack.zone_cells[coupler::kContinuum],
+                                    ack.zone_cells[coupler::kHybrid], ack.zone_cells[coupler::kDiscrete]));
+  // what the rezone did to the totals of grains plus points (exact up to round-off)
+  if (comm->me == 0) {
+    double after[7] = {ack.mass, ack.momentum[0], ack.momentum[1], ack.momentum[2], ack.angular[0], ack.angular[1],
+                       ack.angular[2]};
+    std::string line = fmt::format("fix hybrid/mpm: step {}: totals before/after the rezone:", update->ntimestep);
+    for (int k = 0; k < 7; k++)
+      line += fmt::format(" {:.17g} {:.17g}", grains_before[k] + ack.before[k], grains_after[k] + after[k]);
+    utils::logmesg(lmp, line + "\n");
+  }
 }
 
 /* ---------------------------------------------------------------------- */
@@ -650,9 +1009,16 @@ void FixHybridMPM::end_of_step()
   double **v = atom->v;
   for (int i : supported)
     for (int a = 0; a < 3; a++) v[i][a] += dt * support[i][a];
-  if (update->ntimestep % every != 0) return;
+  const bigint step = update->ntimestep;
+  const bool oracle_next = adapt_every > 0 && converted && (step + 1) % adapt_every == 0;
+  if (oracle_next) modify->compute[modify->find_compute(stress_id)]->addstep(step + 1);    // its virial
+  if (step % every != 0) return;
   if (domain->dimension == 2) exchange<2>(false);
   else exchange<3>(false);
+  // the zone oracle right after this exchange (the MPM process did not advance past it),
+  // unless the run ends here: the next run's setup reorders the atoms
+  if (adapt_every > 0 && converted && step % adapt_every == 0 && step < update->laststep)
+    schedule_rezone(coupler::kZonesOracle);
 }
 
 /* ----------------------------------------------------------------------
@@ -874,9 +1240,10 @@ double FixHybridMPM::compute_vector(int n)
   return vector_cache[n];
 }
 
-void FixHybridMPM::fill_thermo_vector()
+void FixHybridMPM::grain_totals(double *all) const
 {
-  double local[7] = {0, 0, 0, 0, 0, 0, 0}, all[7];
+  // mass, linear momentum, angular momentum about the origin (orbital and spin) of all grains
+  double local[7] = {0, 0, 0, 0, 0, 0, 0};
   double **x = atom->x, **v = atom->v, **omega = atom->omega;
   for (int i = 0; i < atom->nlocal; i++) {
     const double m = atom->rmass[i];
@@ -888,6 +1255,12 @@ void FixHybridMPM::fill_thermo_vector()
     local[6] += m * (x[i][0] * v[i][1] - x[i][1] * v[i][0]) + I * omega[i][2];
   }
   MPI_Allreduce(local, all, 7, MPI_DOUBLE, MPI_SUM, world);
+}
+
+void FixHybridMPM::fill_thermo_vector()
+{
+  double all[7];
+  grain_totals(all);
   const coupler::StepAck &a = *last_ack;
   double *out = vector_cache;
   out[kVecExchanges] = static_cast<double>(exchanges + restart_exchanges);
@@ -903,6 +1276,9 @@ void FixHybridMPM::fill_thermo_vector()
     out[kVecLx + d] = all[4 + d] + a.angular[d];
   }
   out[kVecContinuumKE] = a.kinetic_energy;
+  out[kVecContinuumCells] = static_cast<double>(a.zone_cells[coupler::kContinuum]);
+  out[kVecHybridCells] = static_cast<double>(a.zone_cells[coupler::kHybrid]);
+  out[kVecDiscreteCells] = static_cast<double>(a.zone_cells[coupler::kDiscrete]);
   vector_step = update->ntimestep;
 }
 
@@ -911,7 +1287,7 @@ void FixHybridMPM::fill_thermo_vector()
 double FixHybridMPM::memory_usage()
 {
   return static_cast<double>(sizeof(*this)) + atom->nmax * 4 * sizeof(double) + zones.size() +
-      setup_stress.size() * sizeof(double);
+      atom_stress.size() * sizeof(double);
 }
 
 /* ----------------------------------------------------------------------
@@ -992,8 +1368,17 @@ void FixHybridMPM::state_request(int kind, const std::string &path)
       link->send_struct(0, coupler::kTagStep, h, "the state request header");
       link->send_struct(0, coupler::kTagState, request, "the state request");
     }
-    ack = link->receive(0, {coupler::kTagStepAck}, fmt::format("the MPM process {} its state", verb))
-              .as<coupler::StepAck>();
+    coupler::Message m = link->receive(0, {coupler::kTagStepAck, coupler::kTagZones},
+                                       fmt::format("the MPM process {} its state", verb));
+    if (m.tag == coupler::kTagZones) {    // a loaded state's zones come first
+      auto loaded = m.as_array<signed char>();
+      if (loaded.size() != zones.size())
+        throw coupler::PeerError(fmt::format("protocol error: a zone map of {} cells for a grid of {}",
+                                             loaded.size(), zones.size()));
+      zones = std::move(loaded);
+      m = link->receive(0, {coupler::kTagStepAck}, fmt::format("the MPM process {} its state", verb));
+    }
+    ack = m.as<coupler::StepAck>();
     if (ack.status != 0) status = 2, what = fmt::format("{} the MPM state failed: {}", verb,
                                                          coupler::get_text(ack.message));
   } catch (const coupler::PeerError &e) {

@@ -29,6 +29,10 @@ struct GrainView;
 template <int D> struct GridGeometry;
 template <int D> struct NodeMomentum;
 template <int D> class GrainTransfer;
+template <int D> struct PackingTemplate;
+template <int D> struct RezoneCell;
+struct CellVolume;
+struct OracleSettings;
 }
 
 namespace LAMMPS_NS {
@@ -45,6 +49,7 @@ class FixHybridMPM : public Fix {
   void post_neighbor() override;
   void end_of_step() override;
   void post_run() override;
+  int modify_param(int, char **) override;
   double compute_scalar() override;
   double compute_vector(int) override;
   double memory_usage() override;
@@ -73,10 +78,14 @@ class FixHybridMPM : public Fix {
   int model;              // coupler::ModelId
   int every;              // exchange every this many steps
   int hybrid_width;       // cells of hybrid zone inside the continuum regions' border
+  int adapt_every;        // run the zone oracle every this many steps (0 = fixed zones)
+  int grain_type;         // atom type of grains made from points (0 = the group's smallest)
+  int template_seed;      // seed of the packing template new grains are cut from
   double inertia;         // moment of inertia factor of a grain (I = inertia m r^2)
   std::vector<std::string> region_ids;     // continuum regions
   std::string output_path;                 // HDF5 file of grains and points ("" = none)
   std::unique_ptr<coupler::ContinuumSettings> settings;
+  std::unique_ptr<coupler::OracleSettings> oracle;    // zone oracle of adaptive runs
   bool diameter_given, density_given;      // mu(I) grain size and density from the fix line
   bool container_given[6] = {false, false, false, false, false, false};    // xlo xhi ylo yhi zlo zhi
   double container_value[6] = {0, 0, 0, 0, 0, 0};
@@ -93,25 +102,38 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::GrainTransfer<2>> transfer2;    // grain <-> node transfers (2D runs)
   std::unique_ptr<coupler::GrainTransfer<3>> transfer3;    // (3D runs)
   std::vector<signed char> zones;         // coupler::Zone per grid cell (same on all ranks)
-  bool converted;                         // grains of the continuum regions became points
-  bool convert_pending;                   // conversion at the next pre_exchange
+  bool converted;                         // the first rezone happened (points exist)
+  bool rezone_pending;                    // a rezone at the next pre_exchange
+  int rezone_source;                      // its coupler::ZoneSource
+  int new_grain_mask;                     // group bits of grains made from points
+  double polydispersity;                  // of the group's diameters, for the packing template
+  std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
+  std::unique_ptr<coupler::PackingTemplate<3>> template3;
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
   std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)
   double clock_time;                      // DEM time at clock_step (the coupling's clock)
   bigint clock_step;                      // -1 until the first setup
   double clock_dt;
-  std::vector<double> setup_stress;       // per local atom stress*volume at setup (6 each)
+  std::vector<double> atom_stress;        // per local atom stress*volume before a rezone (6 each)
   char *stress_id;                        // compute stress/atom for the Love-Weber stress
 
   // last exchange, for thermo output
   std::unique_ptr<coupler::StepAck> last_ack;
   bigint coupled_grains;
   bigint vector_step;                     // step of the cached thermo vector
-  double vector_cache[15];
+  double vector_cache[18];                // f_ID[1..18], docs/fix_hybrid_mpm.md
 
   void connect();
-  template <int D> void convert();
+  template <int D> void rezone(int source);
+  template <int D> std::vector<coupler::CellVolume> cell_volumes();
+  template <int D> std::vector<signed char> make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
+                                                        bigint &made);
+  template <int D> const coupler::PackingTemplate<D> &packing_template();
+  void schedule_rezone(int source);
+  bool set_oracle_keyword(const std::string &key, const std::string &val);
+  void check_oracle();
+  void store_atom_stress();
   template <int D> void exchange(bool force_output);
   template <int D> coupler::GrainTransfer<D> &transfer();
   template <int D>
@@ -131,6 +153,7 @@ class FixHybridMPM : public Fix {
   void cell_centre(std::size_t c, double *centre) const;
   void grain_defaults();
   void fill_thermo_vector();
+  void grain_totals(double *all) const;
   void fail(const char *file, int line, int status, const char *what);
   [[noreturn]] void illegal(const std::string &why);
 };

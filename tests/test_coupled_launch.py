@@ -72,7 +72,7 @@ def test_lmp_hybrid_handshake_steps_and_clean_finish(tmp_path, hybrid_programs, 
     assert "coupled run finished at LAMMPS step 200 after 20 exchange(s)" in text
     lammps_log = log.read_text()
     assert "fix hybrid/mpm: handshake ok with the MPM process (1 rank(s)): mpm_solver" in lammps_log
-    assert "protocol 2" in lammps_log and "cell 0.01, model drucker_prager" in lammps_log
+    assert "protocol 3" in lammps_log and "cell 0.01, model drucker_prager" in lammps_log
     assert "fix hybrid/mpm: finished the coupled run after 20 exchange(s)" in lammps_log
     # f_couple (thermo column) counts the exchanges
     last = [ln.split() for ln in lammps_log.splitlines() if re.match(r"^\s+200\s+630\s", ln)]
@@ -174,7 +174,7 @@ def test_version_mismatch_is_an_error_on_both_sides_naming_both_versions(tmp_pat
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60, env=env())
     text = output(proc)
     assert proc.returncode != 0, text
-    both = "fix hybrid/mpm is release 0.1.0 (protocol 2), mpm_solver is release 9.9.9 (protocol 2)"
+    both = "fix hybrid/mpm is release 0.1.0 (protocol 3), mpm_solver is release 9.9.9 (protocol 3)"
     assert f"mpm_solver: error: version mismatch: {both}" in text, text
     assert f"ERROR: Fix hybrid/mpm: the MPM process refused the connection: version mismatch: {both}" in text
 

@@ -183,7 +183,12 @@ const char* tag_name(int tag) {
     case kTagStep: return "StepHeader";
     case kTagStepAck: return "StepAck";
     case kTagZones: return "ZoneMap";
-    case kTagCells: return "CellMoments";
+    case kTagVolumes: return "CellVolumes";
+    case kTagRezoneCells: return "RezoneCells";
+    case kTagGrainSums: return "GrainSums";
+    case kTagCreated: return "GrainsMade";
+    case kTagCorrections: return "GrainCorrections";
+    case kTagOracle: return "OracleSettings";
     case kTagNodes: return "NodeRecords";
     case kTagNodeReply: return "NodeUpdates";
     case kTagGrains: return "GrainRecords";

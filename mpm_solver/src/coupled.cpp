@@ -123,6 +123,55 @@ void ack_all(coupler::Link& link, const coupler::StepAck& ack, const std::string
   for (int r = 0; r < link.remote_size(); ++r) link.send_struct(r, coupler::kTagStepAck, ack, what);
 }
 
+/// One rezone transaction (coupler/protocol.hpp). Returns 0, or 2 after reporting an error.
+template <int D>
+int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::StepHeader& h,
+           const std::string& deferred_error, const CoupledOptions& opt) {
+  const std::string at = " of the rezone at step " + std::to_string(h.step);
+  std::vector<std::int8_t> given;
+  coupler::OracleSettings oracle;
+  if (h.zone_source == coupler::kZonesGiven)
+    given = link.receive(0, {coupler::kTagZones}, "the zone map" + at).as_array<std::int8_t>();
+  else
+    oracle = link.receive(0, {coupler::kTagOracle}, "the oracle settings" + at).as<coupler::OracleSettings>();
+  const auto volumes = receive_from_all<coupler::CellVolume>(link, coupler::kTagVolumes, "the grain volumes" + at);
+  auto fail = [&](const std::string& what) {
+    const coupler::StepAck ack = error_ack(h.step, what);
+    ack_all(link, ack, "the rezone's error" + at);
+    error_line(what);
+    return 2;
+  };
+  std::vector<coupler::RezoneCell<D>> cells;
+  try {
+    if (!deferred_error.empty()) throw UserError(deferred_error);
+    cells = continuum->plan_rezone(h.time, h.zone_source, given, oracle, volumes);
+  } catch (const UserError& e) {
+    return fail(std::string("the rezone failed") + at + ": " + e.what());
+  }
+  for (int r = 0; r < link.remote_size(); ++r) {
+    link.send_array(r, coupler::kTagZones, continuum->zones(), "the new zone map" + at);
+    link.send_array(r, coupler::kTagRezoneCells, cells, "the cells to rezone" + at);
+  }
+  const auto grains = receive_from_all<coupler::BodySums<D>>(link, coupler::kTagGrainSums, "the grain sums" + at);
+  const auto made = link.receive(0, {coupler::kTagCreated}, "the cells with new grains" + at).as_array<std::int8_t>();
+  std::vector<coupler::GrainCorrection<D>> corrections;
+  try {
+    corrections = continuum->complete_rezone(grains, made);
+  } catch (const UserError& e) {
+    return fail(std::string("the rezone failed") + at + ": " + e.what());
+  }
+  for (int r = 0; r < link.remote_size(); ++r)
+    link.send_array(r, coupler::kTagCorrections, corrections, "the grain corrections" + at);
+  coupler::StepAck ack = continuum->totals(h.step);
+  say(opt, "step " + std::to_string(h.step) + ": rezone moved the material of " + std::to_string(ack.moved_cells) +
+               " cells (" + std::to_string(ack.points_made) + " points made, " + std::to_string(ack.points_removed) +
+               " removed); cells continuum/hybrid/discrete " + std::to_string(ack.zone_cells[coupler::kContinuum]) +
+               "/" + std::to_string(ack.zone_cells[coupler::kHybrid]) + "/" +
+               std::to_string(ack.zone_cells[coupler::kDiscrete]));
+  ack_all(link, ack, "the rezone's acknowledgement" + at);
+  return 0;
+}
+
 /// Serves the coupled run until Finish (returns 0) or an AbortNote (returns 1).
 template <int D>
 int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions& opt, const std::atomic<bool>* ended) {
@@ -144,21 +193,8 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
     if (m.tag == coupler::kTagStep) {
       const auto h = m.as<coupler::StepHeader>();
       const std::string at = " at step " + std::to_string(h.step);
-      if (h.kind == coupler::kStepConvert) {
-        auto zones = link.receive(0, {coupler::kTagZones}, "the zone map").as_array<std::int8_t>();
-        const auto cells = receive_from_all<coupler::CellMoments<D>>(link, coupler::kTagCells, "the cell moments");
-        coupler::StepAck ack;
-        try {
-          if (!deferred_error.empty()) throw UserError(deferred_error);
-          ack = built->convert(h.time, std::move(zones), cells);
-        } catch (const UserError& e) {
-          ack = error_ack(h.step, e.what());
-        }
-        ack.step = h.step;
-        say(opt, "step " + std::to_string(h.step) + ": " + std::to_string(ack.points) +
-                     " material points made from grains");
-        ack_all(link, ack, "the conversion's acknowledgement");
-        if (ack.status != 0) return 2;
+      if (h.kind == coupler::kStepRezone) {
+        if (rezone<D>(link, built.get(), h, deferred_error, opt) != 0) return 2;
         continue;
       }
       if (h.kind == coupler::kStepSave || h.kind == coupler::kStepLoad) {
@@ -172,6 +208,9 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
           if (h.kind == coupler::kStepSave) built->save(path, h.step, request.exchanges);
           else built->load(path);
           ack = built->totals(h.step);
+          if (h.kind == coupler::kStepLoad)  // the DEM side continues with the saved zones
+            for (int r = 0; r < link.remote_size(); ++r)
+              link.send_array(r, coupler::kTagZones, built->zones(), "the zone map of the loaded state");
         } catch (const UserError& e) {
           ack = error_ack(h.step, e.what());
         }

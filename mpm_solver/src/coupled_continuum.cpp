@@ -5,6 +5,7 @@
 #include <map>
 #include <sstream>
 
+#include "coupler/oracle.hpp"
 #include "coupler/stencil.hpp"
 #include "coupler/zones.hpp"
 #include "mpm/state_file.hpp"
@@ -98,39 +99,204 @@ CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
 }
 
 template <int D>
-coupler::StepAck CoupledContinuum<D>::convert(double time, std::vector<std::int8_t> zones,
-                                              const std::vector<std::vector<coupler::CellMoments<D>>>& per_rank) {
+double CoupledContinuum<D>::grain_share(int zone) const {
+  return zone == coupler::kDiscrete ? 1.0 : zone == coupler::kHybrid ? hello_.continuum.grain_weight : 0.0;
+}
+
+template <int D>
+std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
+    double time, int zone_source, const std::vector<std::int8_t>& given, const coupler::OracleSettings& os,
+    const std::vector<std::vector<coupler::CellVolume>>& volumes) {
+  if (step_open()) throw UserError("internal: a rezone while a substep is open");
   const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(solver_.grid());
-  if (zones.size() != zones_.size()) {
-    coupler::StepAck ack;
-    ack.status = 1;
-    coupler::set_text(ack.message, "the zone map has " + std::to_string(zones.size()) + " cells, the grid " +
-                                       std::to_string(zones_.size()));
-    return ack;
-  }
-  zones_ = std::move(zones);
-  // Sum the ranks' partial moments per cell, in rank order (deterministic).
-  std::map<std::uint64_t, coupler::CellMoments<D>> cells;
-  for (const auto& list : per_rank)
-    for (const auto& m : list) {
-      if (m.cell >= zones_.size()) throw UserError("a DEM rank sent moments for cell " + std::to_string(m.cell) +
-                                                   " outside the grid");
-      auto it = cells.find(m.cell);
-      if (it == cells.end()) cells.emplace(m.cell, m);
-      else it->second.add(m);
+  const coupler::ContinuumSettings& cs = hello_.continuum;
+  const std::size_t n = zones_.size();
+  before_ = totals(0);
+  // The support force acted between grains and points that a rezone deletes, makes or
+  // rescales: both sides drop it (the DEM side too) and the next exchanges build it again.
+  for (std::size_t k : support_nodes_) support_force_[k].setZero(), support_mass_[k] = 0.0;
+  support_nodes_.clear();
+  std::fill(solver_.points().body_accel.begin(), solver_.points().body_accel.end(), Vec<D>::Zero());
+  std::vector<double> volume(n, 0.0);
+  for (const auto& list : volumes)
+    for (const auto& r : list) {
+      if (r.cell >= n)
+        throw UserError("a DEM rank sent the grain volume of cell " + std::to_string(r.cell) + " outside the grid");
+      volume[r.cell] += r.volume;
     }
-  const double grain_weight = hello_.continuum.grain_weight;
-  for (const auto& [cell, moments] : cells) {
-    const double share = zones_[cell] == coupler::kContinuum ? 1.0 : 1.0 - grain_weight;
-    for (const auto& p :
-         coupler::points_from_moments<D>(moments.scaled(share), geometry, hello_.continuum.points_per_axis, share)) {
-      solver_.add_point(p.x, p.v, p.C, p.mass, p.volume, p.stress);
-      solver_.points().weight.back() = static_cast<float>(share);
+  auto& pts = solver_.points();
+  std::vector<std::uint8_t> has_points(n, 0);
+  std::vector<std::size_t> point_cell(pts.size());
+  for (std::size_t p = 0; p < pts.size(); ++p) {
+    point_cell[p] = coupler::cell_index<D>(geometry, coupler::cell_of<D>(geometry, pts.x[p]));
+    has_points[point_cell[p]] = 1;
+  }
+
+  // The new zones
+  std::vector<std::int8_t> next;
+  if (zone_source == coupler::kZonesGiven) {
+    if (given.size() != n)
+      throw UserError("the zone map has " + std::to_string(given.size()) + " cells, the grid " + std::to_string(n));
+    next = given;
+  } else {
+    std::vector<double> shear;
+    if (os.max_shear_rate > 0) {  // the fastest shearing point of each cell, sqrt(2 D:D)
+      shear.assign(n, 0.0);
+      for (std::size_t p = 0; p < pts.size(); ++p) {
+        const Mat<D> Dp = 0.5 * (pts.C[p] + pts.C[p].transpose());
+        shear[point_cell[p]] = std::max(shear[point_cell[p]], std::sqrt(2.0) * Dp.norm());
+      }
+    }
+    const auto walls = coupler::cells_outside_box<D>(geometry, Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
+                                                     Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>());
+    const auto packing = coupler::packing_fraction<D>(geometry, volume, has_points);
+    std::vector<std::uint8_t> material(n);
+    for (std::size_t c = 0; c < n; ++c) material[c] = packing[c] >= os.surface_packing;
+    const auto distance = coupler::signed_distance<D>(geometry, material, walls);
+    next = coupler::update_zones(zone_source == coupler::kZonesInitial ? std::vector<std::int8_t>{} : zones_,
+                                 distance, packing, shear, os);
+    // At the start there are no previous zones to step from: go to the oracle's fixed point.
+    for (int k = 0; zone_source == coupler::kZonesInitial && k < 4; ++k) {
+      auto again = coupler::update_zones(next, distance, packing, shear, os);
+      if (again == next) break;
+      next.swap(again);
     }
   }
+
+  // Cells whose material moves: a changed zone, or material of the wrong kind for the zone
+  // (points that drifted into a discrete cell, grains into a continuum cell).
+  moving_.clear();
+  std::vector<std::int64_t> slot(n, -1);
+  for (std::size_t c = 0; c < n; ++c) {
+    const bool grains = volume[c] > 0, points = has_points[c] != 0;
+    if (!grains && !points) continue;
+    const bool stray = (next[c] == coupler::kDiscrete && points) || (next[c] == coupler::kContinuum && grains);
+    if (next[c] == zones_[c] && !stray) continue;
+    slot[c] = static_cast<std::int64_t>(moving_.size());
+    MovingCell m;
+    m.plan.cell = c;
+    m.plan.zone = next[c];
+    m.plan.grain_weight = next[c] == coupler::kHybrid ? cs.grain_weight : 1.0;
+    m.plan.make_grains = grain_share(next[c]) > 0 && !grains && points;
+    m.points.moments.cell = c;
+    moving_.push_back(std::move(m));
+  }
+  const double dx = geometry.dx;
+  for (std::size_t p = 0; p < pts.size(); ++p) {
+    const std::int64_t k = slot[point_cell[p]];
+    if (k < 0) continue;
+    MovingCell& m = moving_[static_cast<std::size_t>(k)];
+    m.members.push_back(p);
+    const auto c = coupler::cell_coords<D>(geometry, point_cell[p]);
+    const coupler::Spin<D> spin = (pts.mass[p] * dx * dx / coupler::kQuadraticInverseInertia) * coupler::axial<D>(pts.C[p]);
+    m.points.add_body(pts.x[p], pts.v[p], pts.mass[p], spin, dx * dx / 2, Mat<D>(pts.stress[p] * pts.volume(p)),
+                      coupler::cell_center<D>(geometry, c));
+    Eigen::Map<Mat<D>>(m.plan.gradient) += pts.mass[p] * pts.C[p];
+    m.plan.occupancy |= coupler::occupancy_of_point<D>(geometry, c, pts.x[p], std::pow(pts.volume(p), 1.0 / D));
+  }
+  std::vector<coupler::RezoneCell<D>> plans;
+  plans.reserve(moving_.size());
+  for (MovingCell& m : moving_) {
+    if (m.points.moments.mass > 0) Eigen::Map<Mat<D>>(m.plan.gradient) /= m.points.moments.mass;
+    if (m.plan.make_grains) m.plan.target = m.points.moments.scaled(grain_share(m.plan.zone));
+    plans.push_back(m.plan);
+  }
+
+  zones_ = std::move(next);
+  std::fill(std::begin(zone_cells_), std::end(zone_cells_), 0);
+  const Vec<D> lo = Eigen::Map<const Eigen::Vector3d>(hello_.box_lo).head<D>();
+  const Vec<D> hi = Eigen::Map<const Eigen::Vector3d>(hello_.box_hi).head<D>();
+  for (std::size_t c = 0; c < n; ++c) {
+    const Vec<D> x = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, c));
+    if ((x.array() >= lo.array()).all() && (x.array() <= hi.array()).all()) ++zone_cells_[zones_[c]];
+  }
+  if (pts.size() == 0) time_ = time;  // an empty continuum starts its clock with its first points
+  return plans;
+}
+
+template <int D>
+std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
+    const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<std::int8_t>& made) {
+  const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(solver_.grid());
+  if (made.size() != moving_.size())
+    throw UserError("the DEM side reported new grains for " + std::to_string(made.size()) + " cells, " +
+                    std::to_string(moving_.size()) + " were planned");
+  std::map<std::uint64_t, std::size_t> slot;
+  for (std::size_t k = 0; k < moving_.size(); ++k) slot.emplace(moving_[k].plan.cell, k);
+  std::vector<coupler::BodySums<D>> sums(moving_.size());
+  for (const auto& list : grains)  // rank order: deterministic
+    for (const auto& g : list) {
+      const auto it = slot.find(g.moments.cell);
+      if (it == slot.end())
+        throw UserError("a DEM rank sent grain sums for cell " + std::to_string(g.moments.cell) +
+                        ", which is not being rezoned");
+      sums[it->second].add(g);
+    }
+
+  auto& pts = solver_.points();
+  std::vector<char> remove(pts.size(), 0);
+  std::vector<coupler::NewPoint<D>> new_points;
+  std::vector<float> new_weights;
+  std::vector<coupler::GrainCorrection<D>> corrections;
+  moved_cells_ = static_cast<std::int64_t>(moving_.size());
+  points_made_ = points_removed_ = 0;
+  for (std::size_t k = 0; k < moving_.size(); ++k) {
+    const MovingCell& m = moving_[k];
+    const coupler::BodySums<D>& G = sums[k];
+    const coupler::BodySums<D>& P = m.points;
+    const Vec<D> centre = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, m.plan.cell));
+    coupler::CellMoments<D> total = G.moments;
+    total.add(P.moments);
+    total.cell = m.plan.cell;
+    double share = grain_share(m.plan.zone);
+    if (m.plan.make_grains && !made[k]) share = 0;  // no grain fitted: the points keep it all
+    if (G.moments.mass > 0) {
+      coupler::GrainCorrection<D> gc;
+      gc.cell = m.plan.cell;
+      gc.weight = m.plan.grain_weight;
+      if (share <= 0) gc.remove = 1;
+      else {
+        const auto fix = coupler::rigid_correction<D>(G, total.scaled(share), centre);
+        gc.mass_factor = fix.mass_factor;
+        for (int a = 0; a < D; ++a) gc.velocity[a] = fix.velocity[a], gc.centre[a] = fix.centre[a];
+        for (int a = 0; a < fix.omega.size(); ++a) gc.omega[a] = fix.omega[a];
+      }
+      corrections.push_back(gc);
+    }
+    const double point_share = 1.0 - share;
+    if (P.moments.mass > 0) {
+      if (point_share <= 0) {
+        for (std::size_t p : m.members) remove[p] = 1;
+        points_removed_ += static_cast<std::int64_t>(m.members.size());
+      } else {
+        const auto fix = coupler::rigid_correction<D>(P, total.scaled(point_share), centre);
+        const Mat<D> spin = coupler::skew<D>(fix.omega);
+        for (std::size_t p : m.members) {
+          pts.mass[p] *= fix.mass_factor;
+          pts.volume0[p] *= fix.mass_factor;  // same density, same deformation state
+          pts.v[p] += fix.increment(pts.x[p]);
+          pts.C[p] += spin;
+          pts.weight[p] = static_cast<float>(point_share);
+        }
+      }
+    } else if (point_share > 0 && total.mass > 0) {
+      for (const auto& p : coupler::points_from_moments<D>(total.scaled(point_share), geometry,
+                                                           hello_.continuum.points_per_axis, point_share)) {
+        new_points.push_back(p);
+        new_weights.push_back(static_cast<float>(point_share));
+      }
+    }
+  }
+  remove_points(pts, remove);
+  for (std::size_t i = 0; i < new_points.size(); ++i) {
+    const auto& p = new_points[i];
+    solver_.add_point(p.x, p.v, p.C, p.mass, p.volume, p.stress);
+    pts.weight.back() = new_weights[i];
+  }
+  points_made_ = static_cast<std::int64_t>(new_points.size());
   solver_.sort_points_by_cell();
-  time_ = time;
-  return totals(0);
+  moving_.clear();
+  return corrections;
 }
 
 template <int D>
@@ -295,6 +461,12 @@ coupler::StepAck CoupledContinuum<D>::ack(std::int64_t step, double mass, const 
   a.mass = mass;
   a.kinetic_energy = kinetic_energy;
   for (int d = 0; d < D; ++d) a.momentum[d] = momentum[d];
+  for (int z = 0; z < 3; ++z) a.zone_cells[z] = zone_cells_[z];
+  a.moved_cells = moved_cells_;
+  a.points_made = points_made_;
+  a.points_removed = points_removed_;
+  a.before[0] = before_.mass;
+  for (int d = 0; d < 3; ++d) a.before[1 + d] = before_.momentum[d], a.before[4 + d] = before_.angular[d];
   if constexpr (D == 2) a.angular[2] = angular[0];
   else
     for (int d = 0; d < 3; ++d) a.angular[d] = angular[d];

@@ -1,8 +1,9 @@
 #pragma once
-// Homogenisation of one grid cell: the grains in it become material points
-// that carry exactly the same mass, linear momentum and angular momentum
-// (DESIGN.md section 5). The points' angular momentum is the APIC one, which
-// includes the affine part C, so a cell's spin survives the conversion.
+// Conversion rules of one grid cell between grains and material points, exact in mass,
+// linear momentum and angular momentum (DESIGN.md section 5): the cell sums, the rigid
+// correction that every change of a cell's zone uses, and homogenisation (grains become
+// points; enrichment.hpp is the other direction). The points' angular momentum is the APIC
+// one, which includes the affine part C, so a cell's spin survives the conversion.
 //
 // Flow: each DEM rank sums the grains it owns into CellMoments (add_grain),
 // the partial sums travel as bytes and are added (add), the MPM side scales
@@ -148,6 +149,92 @@ struct CellMoments {
 static_assert(std::is_trivially_copyable_v<CellMoments<2>> && std::is_trivially_copyable_v<CellMoments<3>>,
               "CellMoments is sent over MPI as bytes");
 
+// ---------------------------------------------------------------------------------------
+// Moving a cell's material between its two representations (DESIGN.md section 5, adaptive
+// zones). One rule serves every direction: a set of bodies - the grains or the material
+// points of one cell - is scaled in mass and given a rigid velocity increment (translation
+// plus rotation about its centre of mass), so that it carries exactly a target mass, linear
+// momentum and angular momentum. New bodies are made at rest (or with a prior velocity
+// field) and corrected onto their share; existing bodies are corrected onto a new share.
+//
+// Derivation. Bodies i with masses m_i at x_i, own isotropic inertia m_i e_i (a grain's
+// spin inertia k r^2, APIC's dx^2/2 for a point), sums M, P, L (about the origin). Scale all
+// masses by f = M_t / M and add dv_i = a + w x r_i, dspin_i = w, r_i = x_i - X_c, X_c the
+// centre of mass (unchanged by the scaling). As sum m_i r_i = 0:
+//   P' = f P + M_t a                               -> a = (P_t - f P) / M_t
+//   L' = f L + X_c x M_t a + J w,  J = f sum m_i ((|r_i|^2 + e_i) I - r_i r_i^T)
+//                                                  -> J w = L_t - f L - X_c x M_t a.
+// For points "spin += w" is "C += skew(w)" (axial(skew(w)) = 2 w, APIC spin m dx^2/4 axial(C)).
+
+/// Sums over a set of bodies that the rigid correction needs: the cell moments and the
+/// inertia about a reference point (the cell centre, so that the parallel-axis shift to the
+/// centre of mass cancels little). Additive over bodies and over ranks; sent as bytes.
+template <int D>
+struct BodySums {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  using Mat = Eigen::Matrix<double, D, D>;
+
+  CellMoments<D> moments;
+  double inertia_[D * D] = {};  ///< sum m ((|r|^2 + e) I - r r^T), r = x - reference; 2D: [0] only
+
+  Eigen::Map<Mat> inertia() { return Eigen::Map<Mat>(inertia_); }
+  Eigen::Map<const Mat> inertia() const { return Eigen::Map<const Mat>(inertia_); }
+
+  /// One body: spin_L its own angular momentum, extra_sq its own inertia per mass (e).
+  void add_body(const Vec& x, const Vec& v, double m, const Spin<D>& spin_L, double extra_sq,
+                const Mat& stress_volume, const Vec& reference) {
+    moments.add_grain(x, v, m, spin_L, stress_volume);
+    Mat J = Mat::Zero();
+    add_rotational_inertia<D>(J, m, Vec(x - reference), extra_sq);
+    inertia() += J;
+  }
+  void add(const BodySums& o) {
+    moments.add(o.moments);
+    inertia() += o.inertia();
+  }
+};
+static_assert(std::is_trivially_copyable_v<BodySums<2>> && std::is_trivially_copyable_v<BodySums<3>>,
+              "BodySums is sent over MPI as bytes");
+
+/// The mass factor and rigid velocity increment that carry a set of bodies onto a target.
+template <int D>
+struct RigidCorrection {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  double mass_factor = 1;
+  Vec velocity = Vec::Zero();        ///< a: added to every body's velocity
+  Spin<D> omega = Spin<D>::Zero();   ///< w: rotation rate added about `centre` (and to each spin)
+  Vec centre = Vec::Zero();          ///< X_c, the bodies' centre of mass
+
+  /// The velocity increment of a body at x.
+  Vec increment(const Vec& x) const { return velocity + skew<D>(omega) * (x - centre); }
+};
+
+/// The correction taking bodies with sums `current` (inertia about `reference`) to carry
+/// exactly target's mass, momentum and angular momentum (derivation above). Needs
+/// current and target masses > 0 and bodies with some inertia about their centre.
+template <int D>
+RigidCorrection<D> rigid_correction(const BodySums<D>& current, const CellMoments<D>& target,
+                                    const Eigen::Matrix<double, D, 1>& reference) {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  using Mat = Eigen::Matrix<double, D, D>;
+  const CellMoments<D>& c = current.moments;
+  RigidCorrection<D> r;
+  r.mass_factor = target.mass / c.mass;
+  r.centre = c.first_moment() / c.mass;
+  // Inertia about the centre of mass (parallel axis), then scaled with the masses.
+  const Vec d = r.centre - reference;
+  Mat J = current.inertia();
+  if constexpr (D == 2)
+    J(0, 0) -= c.mass * d.squaredNorm();
+  else
+    J -= c.mass * (d.squaredNorm() * Mat::Identity() - d * d.transpose());
+  J *= r.mass_factor;
+  r.velocity = (target.momentum() - r.mass_factor * c.momentum()) / target.mass;
+  const Spin<D> dL = target.angular() - r.mass_factor * c.angular() - cross<D>(r.centre, Vec(target.mass * r.velocity));
+  r.omega = rotation_rate<D>(J, dL);
+  return r;
+}
+
 template <int D>
 struct NewPoint {
   Eigen::Matrix<double, D, 1> x, v;
@@ -196,11 +283,8 @@ Eigen::Matrix<double, D, 1> cell_center(const GridGeometry<D>& grid, const Eigen
 /// points' sum of stress*volume is m.stress_volume and their stress is the
 /// unscaled cell stress S/dx^D. Empty if m.mass <= 0.
 ///
-/// Velocities v_p = P/M + Omega x r_p, C_p = skew(Omega), r_p = x_p - X_c with
-/// X_c the lattice centre, so sum m_p r_p = 0. Then, as axial(skew(Omega)) = 2 Omega,
-///   sum_p L_p = X_c x P + sum_p m_p r_p x (Omega x r_p) + sum_p m_p dx^2/2 Omega
-///             = X_c x P + [sum_p m_p (|r_p|^2 I - r_p r_p^T + dx^2/2 I)] Omega,
-/// and Omega solves J Omega = L - X_c x P (2D: J = sum_p m_p (|r_p|^2 + dx^2/2)).
+/// The lattice starts at rest and takes the rigid correction onto m (APIC points have
+/// their own inertia dx^2/2 per mass): v_p = P/M + Omega x r_p, C_p = skew(Omega).
 template <int D>
 std::vector<NewPoint<D>> points_from_moments(const CellMoments<D>& m, const GridGeometry<D>& grid, int per_axis,
                                              double volume_share) {
@@ -210,31 +294,26 @@ std::vector<NewPoint<D>> points_from_moments(const CellMoments<D>& m, const Grid
   int n = 1;
   for (int a = 0; a < D; ++a) n *= per_axis;
   const double cell_volume = std::pow(grid.dx, D);
-  const double mp = m.mass / n;
   const Eigen::Matrix<int, D, 1> c = cell_coords(grid, static_cast<std::size_t>(m.cell));
   const Vec lower = grid.node_position(c);
   const Vec centre = cell_center(grid, c);
   const Mat stress = volume_share > 0 ? Mat(m.stress_volume() / (volume_share * cell_volume)) : Mat(Mat::Zero());
 
   std::vector<NewPoint<D>> points(static_cast<std::size_t>(n));
-  Mat J = Mat::Zero();  // 2D: J(0,0) holds the scalar; the rest is unused
+  BodySums<D> at_rest;
   for (int p = 0; p < n; ++p) {
     Vec x;
     for (int a = D - 1, k = p; a >= 0; --a, k /= per_axis) x[a] = lower[a] + (k % per_axis + 0.5) / per_axis * grid.dx;
-    const Vec r = x - centre;
-    add_rotational_inertia<D>(J, mp, r, grid.dx * grid.dx / 2);
     points[p].x = x;
+    points[p].mass = m.mass / n;
+    at_rest.add_body(x, Vec::Zero(), points[p].mass, Spin<D>::Zero(), grid.dx * grid.dx / 2, Mat::Zero(), centre);
   }
-  const Vec V = m.momentum() / m.mass;
-  const Spin<D> L_int = m.angular() - cross<D>(centre, m.momentum().eval());
-  const Spin<D> omega = rotation_rate<D>(J, L_int);
-  const Mat C = skew<D>(omega);
-
+  const RigidCorrection<D> fix = rigid_correction<D>(at_rest, m, centre);
   for (NewPoint<D>& pt : points) {
-    pt.v = V + C * (pt.x - centre);
-    pt.C = C;
+    pt.v = fix.increment(pt.x);
+    pt.C = skew<D>(fix.omega);
     pt.stress = stress;
-    pt.mass = mp;
+    pt.mass *= fix.mass_factor;
     pt.volume = volume_share * cell_volume / n;
   }
   return points;

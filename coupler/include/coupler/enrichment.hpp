@@ -208,47 +208,57 @@ struct NewGrain {
   double radius, mass;
 };
 
-/// Grains for cell target.cell carrying exactly target's mass, linear momentum
-/// and angular momentum (about the origin, orbital + spin). The template,
-/// scaled by mean_diameter, is tiled from grid.origin; kept are the grains
-/// whose centre lies in the cell (cell_of) and which overlap none of the
-/// existing grains (neighbour_x, neighbour_r). Empty if target.mass <= 0 or no
-/// grain fits: the caller then keeps the points.
-///
-/// Masses: m_g = f * solid_density * volume_g with one common f such that the
-/// sum is target.mass (the points' mass rarely equals the kept grains' solid
-/// mass), so the grains' density is f * solid_density, not solid_density; f is
-/// written to *density_factor if given.
-///
-/// Velocities: v_g = P/M + Omega x r_g, spin omega_g = Omega, r_g = x_g - X_c
-/// with X_c the grains' centre of mass, so sum m_g r_g = 0 and the momentum is
-/// M P/M = P. With spin I_g = k m_g rho_g^2 (k = inertia_factor, rho_g the
-/// radius; 0.5 disk, 0.4 ball), using sum m_g r_g = 0:
-///   L = sum_g [x_g x m_g v_g + I_g Omega]
-///     = X_c x P + sum_g m_g r_g x (Omega x r_g) + sum_g I_g Omega
-///     = X_c x P + [sum_g m_g ((|r_g|^2 + k rho_g^2) I - r_g r_g^T)] Omega,
-/// so Omega solves J Omega = L - X_c x P; J is positive definite for k > 0
-/// (2D: the scalar J = sum_g m_g (|r_g|^2 + k rho_g^2)).
-/// The centre of mass (first moment) follows from the template, not from
-/// target: it moves at most within the cell.
-template <int D>
-std::vector<NewGrain<D>> grains_for_cell(const CellMoments<D>& target, const GridGeometry<D>& grid,
-                                         const PackingTemplate<D>& tmpl, double mean_diameter, double solid_density,
-                                         const std::vector<Eigen::Matrix<double, D, 1>>& neighbour_x,
-                                         const std::vector<double>& neighbour_r, double inertia_factor,
-                                         double* density_factor = nullptr) {
-  using Vec = Eigen::Matrix<double, D, 1>;
-  using Mat = Eigen::Matrix<double, D, D>;
-  using IVec = Eigen::Matrix<int, D, 1>;
-  if (neighbour_x.size() != neighbour_r.size())
-    throw std::invalid_argument("grains_for_cell: neighbour_x and neighbour_r differ in size");
-  if (!(mean_diameter > 0) || !(solid_density > 0) || !(inertia_factor > 0) || !(tmpl.side > 0))
-    throw std::invalid_argument("grains_for_cell: diameter, density, inertia factor and side must be > 0");
-  if (density_factor) *density_factor = 0;
-  if (!(target.mass > 0)) return {};
+/// Where in a cell its material points are: the cell split into kOccupancyDivisions^D
+/// sub-cells, one bit each (64 bits hold 4^3). New grains go only into occupied sub-cells,
+/// so a half-full cell near the free surface is not filled up with light grains.
+inline constexpr int kOccupancyDivisions = 4;
+using Occupancy = std::uint64_t;
 
+/// Bit of the sub-cell of cell c that holds x (x inside the cell).
+template <int D>
+Occupancy occupancy_bit(const GridGeometry<D>& grid, const Eigen::Matrix<int, D, 1>& c,
+                        const Eigen::Matrix<double, D, 1>& x) {
+  int bit = 0;
+  for (int a = 0; a < D; ++a) {
+    const int s = static_cast<int>(std::floor((grid.to_cell_units(x)[a] - c[a]) * kOccupancyDivisions));
+    bit = bit * kOccupancyDivisions + std::clamp(s, 0, kOccupancyDivisions - 1);
+  }
+  return Occupancy{1} << bit;
+}
+
+/// Marks the sub-cells of cell c whose centres lie within the cube of side `side` centred
+/// at x (a point's own volume, side = V^(1/D)).
+template <int D>
+Occupancy occupancy_of_point(const GridGeometry<D>& grid, const Eigen::Matrix<int, D, 1>& c,
+                             const Eigen::Matrix<double, D, 1>& x, double side) {
+  Occupancy mask = 0;
+  const Eigen::Matrix<double, D, 1> lower = grid.node_position(c);
+  const double sub = grid.dx / kOccupancyDivisions;
+  int total = 1;
+  for (int a = 0; a < D; ++a) total *= kOccupancyDivisions;
+  for (int bit = 0; bit < total; ++bit) {
+    bool inside = true;
+    for (int a = D - 1, r = bit; a >= 0; --a, r /= kOccupancyDivisions) {
+      const double centre = lower[a] + (r % kOccupancyDivisions + 0.5) * sub;
+      inside = inside && std::abs(centre - x[a]) <= 0.5 * side;
+    }
+    if (inside) mask |= Occupancy{1} << bit;
+  }
+  return mask | occupancy_bit<D>(grid, c, x);  // at least its own sub-cell
+}
+
+/// The template grains, scaled by mean_diameter and tiled from grid.origin, whose centre lies
+/// in cell `cell` (cell_of), at rest and massless. Every cell cuts the same tiling, so the
+/// candidates of neighbouring cells never overlap each other.
+template <int D>
+std::vector<NewGrain<D>> template_candidates(std::size_t cell, const GridGeometry<D>& grid,
+                                             const PackingTemplate<D>& tmpl, double mean_diameter) {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  using IVec = Eigen::Matrix<int, D, 1>;
+  if (!(mean_diameter > 0) || !(tmpl.side > 0))
+    throw std::invalid_argument("template_candidates: diameter and side must be > 0");
   // Template tiles overlapping the cell: tile k covers origin + L [k, k + 1).
-  const IVec c = cell_coords(grid, static_cast<std::size_t>(target.cell));
+  const IVec c = cell_coords(grid, cell);
   const double L = tmpl.side * mean_diameter;
   IVec k_lo, k_hi;
   for (int a = 0; a < D; ++a) {
@@ -271,50 +281,91 @@ std::vector<NewGrain<D>> grains_for_cell(const CellMoments<D>& target, const Gri
       // The same expression in every cell, so neighbouring cells agree on the tiling.
       const Vec x = shift + mean_diameter * tmpl.x[i];
       if (cell_of(grid, x) != c) continue;
-      const double r = mean_diameter * tmpl.radius[i];
-      bool free = true;
-      for (std::size_t j = 0; j < neighbour_x.size() && free; ++j) {
-        const double reach = r + neighbour_r[j];
-        free = (x - neighbour_x[j]).squaredNorm() >= reach * reach;
-      }
-      if (!free) continue;
       NewGrain<D> g;
       g.x = x;
-      g.radius = r;
-      g.mass = solid_density * grain_volume<D>(r);
+      g.v.setZero();
+      g.omega.setZero();
+      g.radius = mean_diameter * tmpl.radius[i];
+      g.mass = 0;
       grains.push_back(g);
     }
   }
-  if (grains.empty()) return {};
+  return grains;
+}
 
-  // Masses: one common factor, so the total is target.mass.
-  double solid_mass = 0;
-  for (const NewGrain<D>& g : grains) solid_mass += g.mass;
-  const double f = target.mass / solid_mass;
-  if (density_factor) *density_factor = f;
+/// Gives `grains` (positions and radii set) masses and velocities that carry exactly
+/// target's mass, linear momentum and angular momentum (about the origin, orbital + spin).
+/// Masses m_g = f * solid_density * volume_g with one common f (written to *density_factor
+/// if given): the kept grains' solid mass rarely equals the target's. Velocities: the prior
+/// affine field `gradient` (e.g. the continuum's velocity gradient) about the grains' centre
+/// of mass, then the rigid correction (conversion.hpp) onto the target, so that spin and
+/// orbital parts add up exactly; spin inertia inertia_factor m r^2 (0.5 disk, 0.4 ball).
+/// Empty input or target.mass <= 0: returns false and leaves grains unchanged.
+template <int D>
+bool set_grain_moments(std::vector<NewGrain<D>>& grains, const CellMoments<D>& target, const GridGeometry<D>& grid,
+                       double solid_density, double inertia_factor,
+                       const Eigen::Matrix<double, D, D>& gradient = Eigen::Matrix<double, D, D>::Zero(),
+                       double* density_factor = nullptr) {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  using Mat = Eigen::Matrix<double, D, D>;
+  if (!(solid_density > 0) || !(inertia_factor > 0))
+    throw std::invalid_argument("set_grain_moments: density and inertia factor must be > 0");
+  if (density_factor) *density_factor = 0;
+  if (grains.empty() || !(target.mass > 0)) return false;
   double M = 0;
   Vec first = Vec::Zero();
   for (NewGrain<D>& g : grains) {
-    g.mass *= f;
+    g.mass = solid_density * grain_volume<D>(g.radius);
     M += g.mass;
     first += g.mass * g.x;
   }
   const Vec centre = first / M;
-
-  // Rigid rotation rate Omega from J Omega = L - X_c x P (derivation above).
-  Mat J = Mat::Zero();  // 2D: J(0,0) holds the scalar; the rest is unused
-  for (const NewGrain<D>& g : grains) {
-    add_rotational_inertia<D>(J, g.mass, g.x - centre, inertia_factor * g.radius * g.radius);
-  }
-  const Vec P = target.momentum();
-  const Spin<D> L_int = target.angular() - cross<D>(centre, P);
-  const Spin<D> omega = rotation_rate<D>(J, L_int);
-  const Mat W = skew<D>(omega);
-  const Vec V = P / M;
+  const Vec reference = cell_center(grid, cell_coords(grid, static_cast<std::size_t>(target.cell)));
+  BodySums<D> sums;
   for (NewGrain<D>& g : grains) {
-    g.v = V + W * (g.x - centre);
-    g.omega = omega;
+    g.v = gradient * (g.x - centre);
+    g.omega.setZero();
+    sums.add_body(g.x, g.v, g.mass, Spin<D>::Zero(), inertia_factor * g.radius * g.radius, Mat::Zero(), reference);
   }
+  const RigidCorrection<D> fix = rigid_correction<D>(sums, target, reference);
+  for (NewGrain<D>& g : grains) {
+    g.mass *= fix.mass_factor;
+    g.v += fix.increment(g.x);
+    g.omega += fix.omega;
+  }
+  if (density_factor) *density_factor = fix.mass_factor;
+  return true;
+}
+
+/// Grains for cell target.cell carrying exactly target's mass, linear momentum and angular
+/// momentum: the template candidates of the cell that overlap none of the existing grains
+/// (neighbour_x, neighbour_r; overlaps would inject elastic energy), with set_grain_moments
+/// (no prior field: a rigid motion). Empty if target.mass <= 0 or no grain fits: the
+/// caller then keeps the points. The centre of mass follows from the template, not from
+/// target: it moves at most within the cell.
+template <int D>
+std::vector<NewGrain<D>> grains_for_cell(const CellMoments<D>& target, const GridGeometry<D>& grid,
+                                         const PackingTemplate<D>& tmpl, double mean_diameter, double solid_density,
+                                         const std::vector<Eigen::Matrix<double, D, 1>>& neighbour_x,
+                                         const std::vector<double>& neighbour_r, double inertia_factor,
+                                         double* density_factor = nullptr) {
+  if (neighbour_x.size() != neighbour_r.size())
+    throw std::invalid_argument("grains_for_cell: neighbour_x and neighbour_r differ in size");
+  if (!(mean_diameter > 0) || !(solid_density > 0) || !(inertia_factor > 0) || !(tmpl.side > 0))
+    throw std::invalid_argument("grains_for_cell: diameter, density, inertia factor and side must be > 0");
+  if (density_factor) *density_factor = 0;
+  if (!(target.mass > 0)) return {};
+  std::vector<NewGrain<D>> grains;
+  for (const NewGrain<D>& g : template_candidates<D>(static_cast<std::size_t>(target.cell), grid, tmpl, mean_diameter)) {
+    bool free = true;
+    for (std::size_t j = 0; j < neighbour_x.size() && free; ++j) {
+      const double reach = g.radius + neighbour_r[j];
+      free = (g.x - neighbour_x[j]).squaredNorm() >= reach * reach;
+    }
+    if (free) grains.push_back(g);
+  }
+  set_grain_moments<D>(grains, target, grid, solid_density, inertia_factor,
+                       Eigen::Matrix<double, D, D>::Zero(), density_factor);
   return grains;
 }
 

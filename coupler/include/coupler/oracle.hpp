@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 #include <vector>
 
 #include "coupler/conversion.hpp"
@@ -34,6 +35,7 @@ struct OracleSettings {
   double dilute_packing = 0;  ///< cells with phi below this are discrete
   double max_shear_rate = 0;  ///< cells whose shear rate exceeds this are discrete
 };
+static_assert(std::is_trivially_copyable_v<OracleSettings>, "OracleSettings is sent over MPI as bytes");
 
 // ---------------------------------------------------------------------------------------
 // 1. Packing fraction

@@ -38,6 +38,9 @@
 #include <type_traits>
 #include <vector>
 
+#include "coupler/conversion.hpp"
+#include "coupler/enrichment.hpp"
+#include "coupler/oracle.hpp"
 #include "coupler/version.hpp"
 
 namespace coupler {
@@ -54,12 +57,18 @@ enum Tag : int {
   kTagIntercomm = 7303,   ///< tag of MPI_Intercomm_create
   kTagStep = 7310,        ///< DEM leader -> MPM, StepHeader
   kTagStepAck = 7311,     ///< MPM -> every DEM rank, StepAck (last message of an exchange)
-  kTagZones = 7312,       ///< DEM leader -> MPM, the zone map (one Zone byte per grid cell)
-  kTagCells = 7313,       ///< every DEM rank -> MPM, CellMoments<D>[] of the grains it converts
+  kTagZones = 7312,       ///< the zone map, one Zone byte per grid cell: DEM leader -> MPM (a given
+                          ///< map), MPM -> every DEM rank (the new map of a rezone)
+  kTagVolumes = 7313,     ///< every DEM rank -> MPM, CellVolume[]: its grains' volume per cell
   kTagNodes = 7314,       ///< every DEM rank -> MPM, NodeRecord[] of its coupled grains
   kTagNodeReply = 7315,   ///< MPM -> every DEM rank, NodeUpdate[] in the order of its NodeRecords
   kTagGrains = 7316,      ///< every DEM rank -> MPM at output frames, GrainRecord[]
   kTagState = 7317,       ///< DEM leader -> MPM, StateRequest (save or load the MPM state)
+  kTagRezoneCells = 7318, ///< MPM -> every DEM rank, RezoneCell<D>[]: the cells whose material moves
+  kTagGrainSums = 7319,   ///< every DEM rank -> MPM, BodySums<D>[] of its grains in those cells
+  kTagCreated = 7321,     ///< DEM leader -> MPM, one byte per RezoneCell: 1 if grains were made there
+  kTagCorrections = 7322, ///< MPM -> every DEM rank, GrainCorrection<D>[] for the cells holding grains
+  kTagOracle = 7323,      ///< DEM leader -> MPM, OracleSettings of a rezone by the oracle
   kTagFinish = 7320,      ///< DEM -> MPM, Finish: the coupled run is over, MPM exits 0
   kTagAbort = 7330,       ///< DEM -> MPM, AbortNote: DEM stopped on an error, MPM exits 1
 };
@@ -132,9 +141,59 @@ struct HelloReply {
 /// What a StepHeader announces.
 enum StepKind : std::int32_t {
   kStepCouple = 0,   ///< NodeRecords follow from every DEM rank; NodeUpdates go back
-  kStepConvert = 1,  ///< the zone map and CellMoments follow (grains become material points)
+  kStepRezone = 1,   ///< new zones and the material moved between grains and points (below)
   kStepSave = 2,     ///< a StateRequest follows: write the MPM state (next to a LAMMPS restart file)
   kStepLoad = 3,     ///< a StateRequest follows: continue from a saved MPM state
+};
+
+/// Where the zones of a rezone come from (StepHeader::zone_source).
+enum ZoneSource : std::int32_t {
+  kZonesOracle = 0,   ///< the oracle, from the previous zones (one step at most per cell)
+  kZonesInitial = 1,  ///< the oracle at the start of a run: iterated to its fixed point
+  kZonesGiven = 2,    ///< the DEM leader sends the map (continuum regions of the fix line)
+};
+
+// A rezone (kStepRezone), all messages in this order:
+//   DEM leader -> MPM   StepHeader; the zone map if zone_source == kZonesGiven, else the
+//                       OracleSettings (the fix line's, changeable between runs)
+//   every DEM rank      CellVolume[] (its grains' volume per cell, for the packing fraction)
+//   MPM -> every rank   the new zone map; RezoneCell<D>[] (cells whose material moves)
+//   every DEM rank      makes grains where RezoneCell::make_grains (all ranks alike), then
+//                       BodySums<D>[] of its other grains in those cells; the leader adds
+//                       one byte per RezoneCell (grains made there)
+//   MPM -> every rank   GrainCorrection<D>[], applied to the grains; then the StepAck.
+// The grains of a cell end with the share of its material their zone gives them (1 discrete,
+// the grain weight hybrid, 0 continuum), the points with the rest: exact to round-off.
+
+/// DEM rank -> MPM: the summed volume of its grains whose centre lies in a cell.
+struct CellVolume {
+  std::uint64_t cell = 0;
+  double volume = 0;
+};
+
+/// MPM -> DEM ranks: one cell whose material moves between grains and points.
+template <int D>
+struct RezoneCell {
+  std::uint64_t cell = 0;
+  std::int32_t zone = 0;               ///< its new Zone
+  std::int32_t make_grains = 0;        ///< 1: it has points but no grains, and its zone wants grains
+  CellMoments<D> target;               ///< make_grains: what the new grains carry (their share)
+  double gradient[D * D] = {};         ///< the points' mass-averaged velocity gradient (column-major)
+  Occupancy occupancy = 0;             ///< sub-cells holding points (enrichment.hpp)
+  double grain_weight = 1;             ///< the weight label of grains in this cell
+};
+
+/// MPM -> DEM ranks: what the grains of one cell become (a rigid correction, or removal).
+template <int D>
+struct GrainCorrection {
+  std::uint64_t cell = 0;
+  std::int32_t remove = 0;             ///< 1: the grains become points (deleted)
+  std::int32_t pad = 0;
+  double weight = 1;                   ///< their new weight label
+  double mass_factor = 1;
+  double velocity[D] = {};
+  double omega[D == 2 ? 1 : 3] = {};
+  double centre[D] = {};
 };
 
 /// DEM leader -> MPM: where to save or load the MPM state.
@@ -151,9 +210,11 @@ struct StepHeader {
   std::int32_t kind = kStepCouple;
   std::int32_t output = 0;           ///< 1: GrainRecords follow from every DEM rank (an output frame)
   std::int64_t n_grains = 0;         ///< coupled grains over all DEM ranks (for the log)
-  /// DEM time of the next exchange if it is certain (same run, no restart file before it),
-  /// else -1: the MPM process may advance to it while LAMMPS computes its steps.
+  /// DEM time of the next exchange if it is certain (same run, no restart file or rezone
+  /// before it), else -1: the MPM process may advance to it while LAMMPS computes its steps.
   double next_time = -1;
+  std::int32_t zone_source = kZonesOracle;  ///< kStepRezone: ZoneSource
+  std::int32_t pad = 0;
 };
 
 /// MPM -> every DEM rank: the end of an exchange, with the continuum's totals.
@@ -170,6 +231,11 @@ struct StepAck {
   double kinetic_energy = 0;         ///< J
   double mismatch = 0;               ///< largest |v_dem - v_mpm| at shared nodes before the agreement, m/s
   double mpm_dt = 0;                 ///< last MPM substep, s
+  std::int64_t zone_cells[3] = {0, 0, 0};  ///< cells of the box per Zone (after the last rezone)
+  std::int64_t moved_cells = 0;      ///< rezone: cells whose material moved between grains and points
+  std::int64_t points_made = 0;      ///< rezone: material points made
+  std::int64_t points_removed = 0;   ///< rezone: material points removed
+  double before[7] = {};             ///< rezone: the continuum's mass, momentum, angular momentum before it
 };
 
 /// DEM rank -> MPM: a coupled grain's weighted mass and momentum on one node.

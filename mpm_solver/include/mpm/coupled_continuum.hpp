@@ -22,11 +22,20 @@ class CoupledContinuum {
   /// Throws UserError if the settings do not make a valid continuum.
   explicit CoupledContinuum(const coupler::Hello& hello);
 
-  /// Grains of continuum and hybrid cells become points: the partial sums of every DEM
-  /// rank are added per cell and each cell's share (1 in continuum cells, 1 - grain weight
-  /// in hybrid cells) becomes points_per_axis^D points. Returns the acknowledgement.
-  coupler::StepAck convert(double time, std::vector<std::int8_t> zones,
-                           const std::vector<std::vector<coupler::CellMoments<D>>>& per_rank);
+  /// First half of a rezone (coupler/protocol.hpp): the new zones - `given` (zone_source
+  /// kZonesGiven) or the oracle's, from the grains' volumes per cell of every DEM rank and the
+  /// points - and the cells whose material moves, with what new grains there must carry.
+  /// `oracle`: its settings (not used with given zones). `time`: the DEM time (the start of the continuum's clock at the first rezone).
+  std::vector<coupler::RezoneCell<D>> plan_rezone(double time, int zone_source, const std::vector<std::int8_t>& given,
+                                                  const coupler::OracleSettings& oracle,
+                                                  const std::vector<std::vector<coupler::CellVolume>>& volumes);
+  /// Second half: with every DEM rank's grain sums in those cells and which cells got new
+  /// grains (one byte per planned cell), moves the points' share (correct, remove or make
+  /// points) and returns what the grains of each cell become. Exact: the grains of a cell
+  /// end with its zone's grain share of the cell's material, the points with the rest.
+  std::vector<coupler::GrainCorrection<D>> complete_rezone(
+      const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<std::int8_t>& made);
+  const std::vector<std::int8_t>& zones() const { return zones_; }
 
   /// Advances the continuum to `time` in stable substeps and stops inside the last one,
   /// after its grid update: the grid then holds the node velocities at `time`. Does nothing
@@ -57,6 +66,18 @@ class CoupledContinuum {
 
  private:
   void apply_support_reaction();
+  /// Share of a cell's material its grains carry in a zone (1 discrete, the weight hybrid).
+  double grain_share(int zone) const;
+  /// A planned cell of a rezone: its plan, its points (indices) and their sums.
+  struct MovingCell {
+    coupler::RezoneCell<D> plan;
+    coupler::BodySums<D> points;
+    std::vector<std::size_t> members;
+  };
+  std::vector<MovingCell> moving_;
+  std::int64_t zone_cells_[3] = {0, 0, 0};
+  std::int64_t moved_cells_ = 0, points_made_ = 0, points_removed_ = 0;
+  coupler::StepAck before_;           ///< the continuum's totals before the last rezone
   coupler::StepAck ack(std::int64_t step, double mass, const Vec<D>& momentum, const coupler::Spin<D>& angular,
                        double kinetic_energy) const;
 

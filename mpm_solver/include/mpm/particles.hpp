@@ -65,4 +65,15 @@ void for_each_point_field(P& pts, F&& f) {
   f("body_accel", pts.body_accel);
 }
 
+/// Removes the points with remove[p] != 0, keeping the order of the others.
+template <int D>
+void remove_points(Particles<D>& pts, const std::vector<char>& remove) {
+  for_each_point_field(pts, [&](const char*, auto& field) {
+    std::size_t kept = 0;
+    for (std::size_t p = 0; p < field.size(); ++p)
+      if (!remove[p]) field[kept++] = field[p];
+    field.resize(kept);
+  });
+}
+
 }  // namespace mpm

@@ -1,0 +1,65 @@
+"""Adaptive zones (fix hybrid/mpm keyword `adaptive`): the zone oracle moves cells between
+discrete, hybrid and continuum during the run, and every move hands material between grains
+and material points with exact mass, linear momentum and angular momentum.
+
+Every rezone prints the totals of grains (carried mass, orbital plus spin angular momentum)
+plus points (APIC angular momentum) just before and just after it; they are taken at the same
+instant, so they differ only by what the handoff itself does.
+"""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from conftest import REPO
+from test_coupled_physics import run_deck, thermo_rows
+
+DECKS = {"2d": REPO / "input_decks" / "hybrid" / "adaptive_2d.lmp",
+         "3d": REPO / "input_decks" / "hybrid" / "adaptive_3d.lmp"}
+REZONE = re.compile(r"step (\d+): (\d+) grains became (\d+) material points, (\d+) grains are hybrid "
+                    r"\(weight [\d.]+\), (\d+) grains made from points; (\d+) cells moved")
+TOTALS = re.compile(r"step (\d+): totals before/after the rezone:((?: \S+){14})")
+
+
+def rezones(log: str) -> tuple[list[dict], list[np.ndarray]]:
+    """The rezone lines of a LAMMPS log: counts, and totals as 7 x 2 arrays (before, after) of
+    mass, momentum x y z, angular momentum x y z."""
+    counts = [dict(step=int(m[1]), grains_to_points=int(m[2]), points_made=int(m[3]), hybrid=int(m[4]),
+                   grains_made=int(m[5]), cells=int(m[6])) for m in REZONE.finditer(log)]
+    totals = [np.array(m[2].split(), dtype=float).reshape(7, 2) for m in TOTALS.finditer(log)]
+    return counts, totals
+
+
+@pytest.mark.parametrize("np_", [1, 2])
+@pytest.mark.parametrize("dim", ["2d", "3d"])
+def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid_programs, dim, np_):
+    """A patch of grains with random velocities and no external force: the oracle makes its
+    interior continuum at step 1, then (shear-rate criterion on) turns fast-shearing continuum
+    back into grains and later into points again. Before and after each rezone the totals agree
+    to round-off, in 2D and 3D, on 1 and 2 LAMMPS ranks; both directions of handoff happen."""
+    nsteps = 200 if dim == "2d" else 100
+    log = run_deck(tmp_path, DECKS[dim], np_, "-var", "nsteps", str(nsteps))
+    counts, totals = rezones(log)
+    assert [c["step"] for c in counts] == [1] + list(range(21, nsteps, 20))
+    assert len(totals) == len(counts)
+    first = counts[0]
+    assert first["grains_to_points"] > 0 and first["points_made"] > 0 and first["hybrid"] > 0
+    later = counts[1:]
+    assert sum(c["grains_made"] for c in later) > 100, later             # enrichment
+    assert sum(c["grains_to_points"] + c["hybrid"] for c in later) > 100, later  # homogenisation
+    rows = thermo_rows(log)
+    mass = rows[0]["f_couple[8]"]
+    # scales of what cancels: mass times the grains' speed (0.05 m/s), and times the box size
+    box = 0.2 if dim == "2d" else 0.16
+    scale = np.array([mass] + [mass * 0.05] * 3 + [mass * 0.05 * box] * 3)
+    # round-off of sums over N bodies: a few N machine epsilons at worst
+    tolerance = 4 * rows[0]["Atoms"] * np.finfo(float).eps
+    for c, t in zip(counts, totals):
+        change = np.abs(t[:, 1] - t[:, 0])
+        assert (change <= tolerance * scale).all(), (c, change / scale)
+    # mass over the whole run, and the atom count follows the handoffs
+    for r in rows[1:]:
+        assert r["f_couple[8]"] == pytest.approx(mass, rel=tolerance)
+    assert rows[-1]["Atoms"] != rows[1]["Atoms"]
