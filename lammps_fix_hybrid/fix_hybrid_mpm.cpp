@@ -54,6 +54,8 @@ using namespace FixConst;
 using MathConst::MY_PI;
 
 static constexpr double BIG = 1.0e20;
+// a new grain that an old one overlaps shrinks to fit, down to this share of its radius
+static constexpr double kSmallestShrink = 0.8;
 
 namespace {
 
@@ -740,10 +742,13 @@ std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::Re
       largest = std::max(largest, g.radius);
     }
   }
-  // flag the candidates any grain (of any group: walls of frozen grains too) overlaps
+  // room of each candidate: the largest radius no grain (of any group: walls of frozen grains
+  // too) overlaps. A candidate a grain overlaps a little shrinks to fit, down to
+  // kSmallestShrink of its size, so the new packing closes up with the old one; one that would
+  // have to shrink more is dropped.
   std::vector<std::size_t> offset(cells.size() + 1, 0);
   for (std::size_t k = 0; k < cells.size(); ++k) offset[k + 1] = offset[k] + candidates[k].size();
-  std::vector<int> blocked(offset.back(), 0), blocked_all(offset.back(), 0);
+  std::vector<double> room(offset.back(), BIG), room_all(offset.back(), BIG);
   double **x = atom->x;
   for (int i = 0; i < atom->nlocal; i++) {
     const Vec<D> xi = Eigen::Map<const Vec<D>>(x[i]);
@@ -762,21 +767,26 @@ std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::Re
       const auto it = by_cell.find(coupler::cell_index<D>(grid, cj));
       if (it == by_cell.end()) continue;
       for (const auto &[k, j] : it->second) {
-        const auto &g = candidates[k][j];
-        const double touch = g.radius + atom->radius[i];
-        if ((g.x - xi).squaredNorm() < touch * touch) blocked[offset[k] + j] = 1;
+        double &r = room[offset[k] + j];
+        r = std::min(r, (candidates[k][j].x - xi).norm() - atom->radius[i]);
       }
     }
   }
-  MPI_Allreduce(blocked.data(), blocked_all.data(), static_cast<int>(blocked.size()), MPI_INT, MPI_MAX, world);
+  MPI_Allreduce(room.data(), room_all.data(), static_cast<int>(room.size()), MPI_DOUBLE, MPI_MIN, world);
 
   // the free candidates of each cell take the cell's target; each rank makes its own
   const double zmid = 0.5 * (domain->boxlo[2] + domain->boxhi[2]);
   for (std::size_t k = 0; k < cells.size(); ++k) {
     if (!cells[k].make_grains) continue;
     std::vector<coupler::NewGrain<D>> kept;
-    for (std::size_t j = 0; j < candidates[k].size(); ++j)
-      if (!blocked_all[offset[k] + j]) kept.push_back(candidates[k][j]);
+    for (std::size_t j = 0; j < candidates[k].size(); ++j) {
+      coupler::NewGrain<D> g = candidates[k][j];
+      // a gap of coupler::kTemplateGap diameters, as between template grains
+      const double fit = room_all[offset[k] + j] - coupler::kTemplateGap * settings->grain_diameter;
+      if (fit < kSmallestShrink * g.radius) continue;
+      g.radius = std::min(g.radius, fit);
+      kept.push_back(g);
+    }
     const Eigen::Matrix<double, D, D> gradient = Eigen::Map<const Eigen::Matrix<double, D, D>>(cells[k].gradient);
     if (!coupler::set_grain_moments<D>(kept, cells[k].target, grid, settings->grain_density, inertia, gradient))
       continue;

@@ -192,7 +192,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     m.points.add_body(pts.x[p], pts.v[p], pts.mass[p], spin, dx * dx / 2, Mat<D>(pts.stress[p] * pts.volume(p)),
                       coupler::cell_center<D>(geometry, c));
     Eigen::Map<Mat<D>>(m.plan.gradient) += pts.mass[p] * pts.C[p];
-    m.plan.occupancy |= coupler::occupancy_of_point<D>(geometry, c, pts.x[p], std::pow(pts.volume(p), 1.0 / D));
+    m.plan.occupancy |= coupler::occupancy_of_point<D>(geometry, c, pts.x[p], 2.0 * std::pow(pts.volume(p), 1.0 / D));
   }
   std::vector<coupler::RezoneCell<D>> plans;
   plans.reserve(moving_.size());

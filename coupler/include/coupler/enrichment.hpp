@@ -49,7 +49,7 @@ struct PackingTemplate {
 /// finds an overlap-free state, and quickly (it slows sharply towards jamming).
 template <int D>
 constexpr double template_packing_fraction() {
-  return D == 2 ? 0.78 : 0.58;
+  return D == 2 ? 0.82 : 0.60;
 }
 /// Minimum gap left between template grains, in mean diameters: survives
 /// scaling and tiling round-off, so the tiled packing is strictly overlap-free.
