@@ -706,39 +706,78 @@ const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
 }
 
 /* ----------------------------------------------------------------------
-   enrichment: grains for the cells that have points and want grains, cut
-   from the packing template where the points are and where no grain of any
-   rank is in the way, carrying exactly the share of the points' material
-   the zone gives grains; every rank makes the ones in its sub-domain.
-   Returns one byte per cell: grains were made there.
+   enrichment, in the cells whose zone wants grains and which have too few
+   for their share: new grains are cut from the packing template where the
+   points are and where no grain of any rank is in the way; together with
+   the cell's old grains they take exactly the grains' share of the cell's
+   material (points plus old grains), at the grains' solid density, with
+   velocities from the continuum's affine field plus one rigid correction.
+   All ranks compute the same grains; each makes those in its sub-domain.
+   old_sums: this rank's sums of the old grains per planned cell. Returns one
+   byte per cell: grains were made there.
 ------------------------------------------------------------------------- */
 
 template <int D>
-std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells, bigint &made)
+std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
+                                                   const std::map<std::size_t, coupler::BodySums<D>> &old_sums,
+                                                   bigint &made)
 {
+  using Mat = Eigen::Matrix<double, D, D>;
   const auto &grid = transfer<D>().grid();
   std::vector<signed char> made_in_cell(cells.size(), 0);
   made = 0;
-  bool any = false;
-  for (const auto &c : cells) any = any || c.make_grains;
-  if (!any) return made_in_cell;
+  std::vector<std::size_t> making;    // planned cells that make grains
+  std::map<std::uint64_t, std::size_t> making_slot;
+  for (std::size_t k = 0; k < cells.size(); ++k)
+    if (cells[k].make_grains) making_slot.emplace(cells[k].cell, making.size()), making.push_back(k);
+  if (making.empty()) return made_in_cell;
+  const double density = settings->grain_density;
+  auto slot_of_atom = [&](int i) -> std::int64_t {
+    const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(atom->x[i]));
+    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return -1;
+    const auto it = making_slot.find(coupler::cell_index<D>(grid, c));
+    return it == making_slot.end() ? -1 : static_cast<std::int64_t>(it->second);
+  };
+
+  // the old grains of these cells, over all ranks: what they carry, and their sums at the
+  // solid density (as members of the new body set)
+  std::vector<coupler::BodySums<D>> carried(making.size()), solid(making.size());
+  for (std::size_t j = 0; j < making.size(); ++j) {
+    const auto it = old_sums.find(making[j]);
+    if (it != old_sums.end()) carried[j] = it->second;
+  }
+  double **x = atom->x, **v = atom->v, **omega = atom->omega;
+  const int nlocal = atom->nlocal;
+  for (int i = 0; i < nlocal; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    const std::int64_t j = slot_of_atom(i);
+    if (j < 0) continue;
+    const double r = atom->radius[i], m = density * coupler::grain_volume<D>(r);
+    coupler::Spin<D> spin;
+    if constexpr (D == 2) spin[0] = inertia * m * r * r * omega[i][2];
+    else spin = inertia * m * r * r * Eigen::Map<const Eigen::Vector3d>(omega[i]);
+    solid[j].add_body(Eigen::Map<const Vec<D>>(x[i]), Eigen::Map<const Vec<D>>(v[i]), m, spin, inertia * r * r,
+                      Mat::Zero(), coupler::cell_center<D>(grid, coupler::cell_coords<D>(grid, cells[making[j]].cell)));
+  }
+  sum_over_ranks<D>(carried);
+  sum_over_ranks<D>(solid);
 
   // candidates of every such cell (the same list on every rank)
   const auto &tmpl = packing_template<D>();
-  std::vector<std::vector<coupler::NewGrain<D>>> candidates(cells.size());
-  std::map<std::size_t, std::vector<std::pair<std::size_t, std::size_t>>> by_cell;    // cell -> (k, index)
+  std::vector<std::vector<coupler::NewGrain<D>>> candidates(making.size());
+  std::map<std::size_t, std::vector<std::pair<std::size_t, std::size_t>>> by_cell;    // cell -> (j, index)
   double largest = 0.0;
-  for (std::size_t k = 0; k < cells.size(); ++k) {
-    if (!cells[k].make_grains) continue;
-    const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
-    for (const auto &g : coupler::template_candidates<D>(cells[k].cell, grid, tmpl, settings->grain_diameter)) {
-      if (!(coupler::occupancy_bit<D>(grid, c, g.x) & cells[k].occupancy)) continue;    // no material there
+  for (std::size_t j = 0; j < making.size(); ++j) {
+    const auto &cell = cells[making[j]];
+    const auto c = coupler::cell_coords<D>(grid, cell.cell);
+    for (const auto &g : coupler::template_candidates<D>(cell.cell, grid, tmpl, settings->grain_diameter)) {
+      if (!(coupler::occupancy_bit<D>(grid, c, g.x) & cell.occupancy)) continue;    // no material there
       bool in_box = true;
       for (int a = 0; a < D; ++a)
         in_box = in_box && g.x[a] - g.radius >= domain->boxlo[a] && g.x[a] + g.radius <= domain->boxhi[a];
       if (!in_box) continue;
-      by_cell[cells[k].cell].emplace_back(k, candidates[k].size());
-      candidates[k].push_back(g);
+      by_cell[cell.cell].emplace_back(j, candidates[j].size());
+      candidates[j].push_back(g);
       largest = std::max(largest, g.radius);
     }
   }
@@ -746,11 +785,10 @@ std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::Re
   // too) overlaps. A candidate a grain overlaps a little shrinks to fit, down to
   // kSmallestShrink of its size, so the new packing closes up with the old one; one that would
   // have to shrink more is dropped.
-  std::vector<std::size_t> offset(cells.size() + 1, 0);
-  for (std::size_t k = 0; k < cells.size(); ++k) offset[k + 1] = offset[k] + candidates[k].size();
+  std::vector<std::size_t> offset(making.size() + 1, 0);
+  for (std::size_t j = 0; j < making.size(); ++j) offset[j + 1] = offset[j] + candidates[j].size();
   std::vector<double> room(offset.back(), BIG), room_all(offset.back(), BIG);
-  double **x = atom->x;
-  for (int i = 0; i < atom->nlocal; i++) {
+  for (int i = 0; i < nlocal; i++) {
     const Vec<D> xi = Eigen::Map<const Vec<D>>(x[i]);
     const int reach = static_cast<int>(std::ceil((atom->radius[i] + largest) / grid.dx));
     const Eigen::Matrix<int, D, 1> ci = coupler::cell_of<D>(grid, xi);
@@ -766,31 +804,48 @@ std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::Re
       if (!on_grid) continue;
       const auto it = by_cell.find(coupler::cell_index<D>(grid, cj));
       if (it == by_cell.end()) continue;
-      for (const auto &[k, j] : it->second) {
-        double &r = room[offset[k] + j];
-        r = std::min(r, (candidates[k][j].x - xi).norm() - atom->radius[i]);
+      for (const auto &[j, n] : it->second) {
+        double &r = room[offset[j] + n];
+        r = std::min(r, (candidates[j][n].x - xi).norm() - atom->radius[i]);
       }
     }
   }
   MPI_Allreduce(room.data(), room_all.data(), static_cast<int>(room.size()), MPI_DOUBLE, MPI_MIN, world);
 
-  // the free candidates of each cell take the cell's target; each rank makes its own
+  // each cell's new and old grains take the grains' share of its material
+  std::vector<coupler::RigidCorrection<D>> fixes(making.size());
   const double zmid = 0.5 * (domain->boxlo[2] + domain->boxhi[2]);
-  for (std::size_t k = 0; k < cells.size(); ++k) {
-    if (!cells[k].make_grains) continue;
+  for (std::size_t j = 0; j < making.size(); ++j) {
+    const auto &cell = cells[making[j]];
     std::vector<coupler::NewGrain<D>> kept;
-    for (std::size_t j = 0; j < candidates[k].size(); ++j) {
-      coupler::NewGrain<D> g = candidates[k][j];
+    for (std::size_t n = 0; n < candidates[j].size(); ++n) {
+      coupler::NewGrain<D> g = candidates[j][n];
       // a gap of coupler::kTemplateGap diameters, as between template grains
-      const double fit = room_all[offset[k] + j] - coupler::kTemplateGap * settings->grain_diameter;
+      const double fit = room_all[offset[j] + n] - coupler::kTemplateGap * settings->grain_diameter;
       if (fit < kSmallestShrink * g.radius) continue;
       g.radius = std::min(g.radius, fit);
       kept.push_back(g);
     }
-    const Eigen::Matrix<double, D, D> gradient = Eigen::Map<const Eigen::Matrix<double, D, D>>(cells[k].gradient);
-    if (!coupler::set_grain_moments<D>(kept, cells[k].target, grid, settings->grain_density, inertia, gradient))
-      continue;
-    made_in_cell[k] = 1;
+    if (kept.empty()) continue;    // the MPM process then corrects the old grains, or keeps the points
+    coupler::CellMoments<D> material = cell.points;
+    material.add(carried[j].moments);
+    if (!(material.mass > 0)) continue;
+    // the new grains move with the continuum's affine field about its centre of mass
+    const Vec<D> centre = coupler::cell_center<D>(grid, coupler::cell_coords<D>(grid, cell.cell));
+    const Vec<D> about = cell.points.mass > 0 ? Vec<D>(cell.points.first_moment() / cell.points.mass) : centre;
+    const Vec<D> drift = cell.points.mass > 0 ? Vec<D>(cell.points.momentum() / cell.points.mass) : Vec<D>::Zero();
+    const Mat gradient = Eigen::Map<const Mat>(cell.gradient);
+    coupler::BodySums<D> bodies = solid[j];
+    for (auto &g : kept) {
+      g.mass = density * coupler::grain_volume<D>(g.radius);
+      g.v = drift + gradient * (g.x - about);
+      g.omega.setZero();
+      bodies.add_body(g.x, g.v, g.mass, coupler::Spin<D>::Zero(), inertia * g.radius * g.radius, Mat::Zero(), centre);
+    }
+    const double share = cell.grain_weight;
+    const coupler::RigidCorrection<D> fix = coupler::rigid_correction<D>(bodies, material.scaled(share), centre);
+    fixes[j] = fix;
+    made_in_cell[making[j]] = 1;
     for (const auto &g : kept) {
       double coord[3] = {0.0, 0.0, zmid};
       for (int a = 0; a < D; ++a) coord[a] = g.x[a];
@@ -801,17 +856,51 @@ std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::Re
       const int n = atom->nlocal - 1;
       atom->mask[n] = new_grain_mask;
       atom->radius[n] = g.radius;
-      atom->rmass[n] = g.mass;
-      for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? g.v[a] : 0.0, atom->omega[n][a] = 0.0;
-      if constexpr (D == 2) atom->omega[n][2] = g.omega[0];
+      atom->rmass[n] = fix.mass_factor * g.mass;
+      const Vec<D> vn = g.v + fix.increment(g.x);
+      for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? vn[a] : 0.0, atom->omega[n][a] = 0.0;
+      if constexpr (D == 2) atom->omega[n][2] = fix.omega[0];
       else
-        for (int a = 0; a < 3; a++) atom->omega[n][a] = g.omega[a];
+        for (int a = 0; a < 3; a++) atom->omega[n][a] = fix.omega[a];
       modify->create_attribute(n);    // every fix's per-atom data (pair history, ours)
-      weight[n] = cells[k].grain_weight;
+      weight[n] = share;
       made++;
     }
   }
+  // the old grains of those cells: the solid density, and the same correction
+  x = atom->x, v = atom->v, omega = atom->omega;
+  for (int i = 0; i < nlocal; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    const std::int64_t j = slot_of_atom(i);
+    if (j < 0 || !made_in_cell[making[j]]) continue;
+    const coupler::RigidCorrection<D> &fix = fixes[j];
+    const Vec<D> dv = fix.increment(Eigen::Map<const Vec<D>>(x[i]));
+    for (int a = 0; a < D; ++a) v[i][a] += dv[a];
+    if constexpr (D == 2) omega[i][2] += fix.omega[0];
+    else
+      for (int a = 0; a < 3; a++) omega[i][a] += fix.omega[a];
+    atom->rmass[i] = fix.mass_factor * density * coupler::grain_volume<D>(atom->radius[i]);
+    weight[i] = cells[making[j]].grain_weight;
+  }
   return made_in_cell;
+}
+
+/* ----------------------------------------------------------------------
+   sums of the same cells over all DEM ranks (every field but the cell index)
+------------------------------------------------------------------------- */
+
+template <int D>
+void FixHybridMPM::sum_over_ranks(std::vector<coupler::BodySums<D>> &sums)
+{
+  constexpr std::size_t skip = sizeof(std::uint64_t);    // BodySums::moments.cell
+  constexpr std::size_t values = (sizeof(coupler::BodySums<D>) - skip) / sizeof(double);
+  static_assert((sizeof(coupler::BodySums<D>) - skip) % sizeof(double) == 0, "BodySums holds doubles after the cell");
+  std::vector<double> local(sums.size() * values), all(sums.size() * values);
+  for (std::size_t k = 0; k < sums.size(); ++k)
+    std::memcpy(&local[k * values], reinterpret_cast<const char *>(&sums[k]) + skip, values * sizeof(double));
+  MPI_Allreduce(local.data(), all.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, world);
+  for (std::size_t k = 0; k < sums.size(); ++k)
+    std::memcpy(reinterpret_cast<char *>(&sums[k]) + skip, &all[k * values], values * sizeof(double));
 }
 
 /* ----------------------------------------------------------------------
@@ -879,12 +968,7 @@ void FixHybridMPM::rezone(int source)
   check_all(status, what);
   zones = std::move(new_zones);
 
-  // 2. enrichment (collective over the DEM ranks)
-  const int nlocal_old = atom->nlocal;
-  bigint made_local = 0;
-  const std::vector<signed char> made = make_grains<D>(cells, made_local);
-
-  // 3. the sums of the grains already in the moving cells
+  // 2. the sums of the grains in the moving cells, before anything changes
   std::map<std::uint64_t, std::size_t> slot;
   for (std::size_t k = 0; k < cells.size(); ++k) slot.emplace(cells[k].cell, k);
   auto cell_of_atom = [&](int i) -> std::int64_t {
@@ -893,29 +977,36 @@ void FixHybridMPM::rezone(int source)
     const auto it = slot.find(coupler::cell_index<D>(grid, c));
     return it == slot.end() ? -1 : static_cast<std::int64_t>(it->second);
   };
-  double **x = atom->x, **v = atom->v, **omega = atom->omega;
-  double *rmass = atom->rmass, *radius = atom->radius;
+  const int nlocal_old = atom->nlocal;
   std::map<std::size_t, coupler::BodySums<D>> sums;
-  for (int i = 0; i < nlocal_old; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const std::int64_t k = cell_of_atom(i);
-    if (k < 0) continue;
-    const double I = inertia * rmass[i] * radius[i] * radius[i];
-    coupler::Spin<D> spin;
-    if constexpr (D == 2) spin[0] = I * omega[i][2];
-    else spin = I * Eigen::Map<const Eigen::Vector3d>(omega[i]);
-    Eigen::Matrix<double, D, D> sv;
-    const double *sa = &atom_stress[6 * i];    // xx yy zz xy xz yz
-    if constexpr (D == 2) sv << sa[0], sa[3], sa[3], sa[1];
-    else sv << sa[0], sa[3], sa[4], sa[3], sa[1], sa[5], sa[4], sa[5], sa[2];
-    const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
-    auto &sum = sums[static_cast<std::size_t>(k)];
-    sum.moments.cell = cells[k].cell;
-    sum.add_body(Eigen::Map<const Vec<D>>(x[i]), Eigen::Map<const Vec<D>>(v[i]), rmass[i], spin,
-                 inertia * radius[i] * radius[i], sv, coupler::cell_center<D>(grid, c));
+  {
+    double **x = atom->x, **v = atom->v, **omega = atom->omega;
+    double *rmass = atom->rmass, *radius = atom->radius;
+    for (int i = 0; i < nlocal_old; i++) {
+      if (!(atom->mask[i] & groupbit)) continue;
+      const std::int64_t k = cell_of_atom(i);
+      if (k < 0) continue;
+      const double I = inertia * rmass[i] * radius[i] * radius[i];
+      coupler::Spin<D> spin;
+      if constexpr (D == 2) spin[0] = I * omega[i][2];
+      else spin = I * Eigen::Map<const Eigen::Vector3d>(omega[i]);
+      Eigen::Matrix<double, D, D> sv;
+      const double *sa = &atom_stress[6 * i];    // xx yy zz xy xz yz
+      if constexpr (D == 2) sv << sa[0], sa[3], sa[3], sa[1];
+      else sv << sa[0], sa[3], sa[4], sa[3], sa[1], sa[5], sa[4], sa[5], sa[2];
+      const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
+      auto &sum = sums[static_cast<std::size_t>(k)];
+      sum.moments.cell = cells[k].cell;
+      sum.add_body(Eigen::Map<const Vec<D>>(x[i]), Eigen::Map<const Vec<D>>(v[i]), rmass[i], spin,
+                   inertia * radius[i] * radius[i], sv, coupler::cell_center<D>(grid, c));
+    }
   }
   std::vector<coupler::BodySums<D>> sum_list;
   for (const auto &kv : sums) sum_list.push_back(kv.second);
+
+  // 3. enrichment (collective over the DEM ranks)
+  bigint made_local = 0;
+  const std::vector<signed char> made = make_grains<D>(cells, sums, made_local);
 
   // 4. the MPM process answers what the grains of each cell become
   std::vector<coupler::GrainCorrection<D>> corrections;
@@ -933,6 +1024,8 @@ void FixHybridMPM::rezone(int source)
   check_all(status, what);
 
   // 5. apply them: delete, or scale and add the rigid velocity increment
+  double **x = atom->x, **v = atom->v, **omega = atom->omega;    // (new grains may have moved the arrays)
+  double *rmass = atom->rmass;
   std::map<std::uint64_t, const coupler::GrainCorrection<D> *> correction_of;
   for (const auto &gc : corrections) correction_of[gc.cell] = &gc;
   std::vector<char> remove(nlocal_old, 0);
@@ -971,7 +1064,7 @@ void FixHybridMPM::rezone(int source)
       deleted_local++;
     }
 
-  // 5. the acknowledgement with the continuum's totals
+  // 6. the acknowledgement with the continuum's totals
   try {
     ack = link->receive(0, {coupler::kTagStepAck}, "the rezone's acknowledgement" + at).as<coupler::StepAck>();
     if (ack.status != 0) status = 2, what = "the MPM process could not rezone: " + coupler::get_text(ack.message);

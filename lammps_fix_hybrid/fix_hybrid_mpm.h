@@ -15,6 +15,7 @@ FixStyle(hybrid/mpm,FixHybridMPM);
 
 #include "fix.h"
 
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -31,6 +32,7 @@ template <int D> struct NodeMomentum;
 template <int D> class GrainTransfer;
 template <int D> struct PackingTemplate;
 template <int D> struct RezoneCell;
+template <int D> struct BodySums;
 struct CellVolume;
 struct OracleSettings;
 }
@@ -128,7 +130,9 @@ class FixHybridMPM : public Fix {
   template <int D> void rezone(int source);
   template <int D> std::vector<coupler::CellVolume> cell_volumes();
   template <int D> std::vector<signed char> make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
+                                                        const std::map<std::size_t, coupler::BodySums<D>> &old_sums,
                                                         bigint &made);
+  template <int D> void sum_over_ranks(std::vector<coupler::BodySums<D>> &sums);
   template <int D> const coupler::PackingTemplate<D> &packing_template();
   void schedule_rezone(int source);
   bool set_oracle_keyword(const std::string &key, const std::string &val);

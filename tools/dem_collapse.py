@@ -244,8 +244,9 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
         hybrid_vars: dict | None = None) -> DemResult:
     """Runs the DEM column collapse and returns the measured result.
 
-    hybrid_vars: run the collapse coupled (the deck's hybrid twin, `hybrid 1`) with these
-    extra deck variables (hx, hy, hcell, hevery, hyoungs, hphi); the settled column is the
+    hybrid_vars: run the collapse coupled (the deck's hybrid twin, `hybrid 1`, or with
+    hybrid=2 the adaptive one) with these extra deck variables (hx, hy, hcell, hevery, hyoungs,
+    hphi, hadapt, hdepth, hband); the settled column is the
     same as the pure DEM run's (built with stock LAMMPS if not cached). The result then
     holds the grains only; the continuum's points are in <out>/frames (HDF5)."""
     extra = {k: str(v) for k, v in (extra_vars or {}).items()}
@@ -268,7 +269,8 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
             raise RuntimeError(f"LAMMPS failed to prepare the column ({proc.returncode}):\n{proc.stderr[-2000:]}")
         variables["prep"] = 0
     if hybrid:
-        variables.update(hybrid=1, **{k: str(v) for k, v in hybrid_vars.items()})
+        variables["hybrid"] = 1  # hybrid_vars may say 2 (adaptive zones)
+        variables.update({k: str(v) for k, v in hybrid_vars.items()})
     proc, wall = _lammps(variables, out, np_, lmp, timeout, hybrid)
     log = (out / "log.lammps").read_text() if (out / "log.lammps").exists() else ""
     if proc.returncode != 0 or not (out / "final.dump").exists():

@@ -177,7 +177,6 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     m.plan.cell = c;
     m.plan.zone = next[c];
     m.plan.grain_weight = next[c] == coupler::kHybrid ? cs.grain_weight : 1.0;
-    m.plan.make_grains = grain_share(next[c]) > 0 && !grains && points;
     m.points.moments.cell = c;
     moving_.push_back(std::move(m));
   }
@@ -192,13 +191,19 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     m.points.add_body(pts.x[p], pts.v[p], pts.mass[p], spin, dx * dx / 2, Mat<D>(pts.stress[p] * pts.volume(p)),
                       coupler::cell_center<D>(geometry, c));
     Eigen::Map<Mat<D>>(m.plan.gradient) += pts.mass[p] * pts.C[p];
+    m.material_volume += pts.volume(p) / std::max(static_cast<double>(pts.weight[p]), 1e-6);
     m.plan.occupancy |= coupler::occupancy_of_point<D>(geometry, c, pts.x[p], 2.0 * std::pow(pts.volume(p), 1.0 / D));
   }
   std::vector<coupler::RezoneCell<D>> plans;
   plans.reserve(moving_.size());
   for (MovingCell& m : moving_) {
     if (m.points.moments.mass > 0) Eigen::Map<Mat<D>>(m.plan.gradient) /= m.points.moments.mass;
-    if (m.plan.make_grains) m.plan.target = m.points.moments.scaled(grain_share(m.plan.zone));
+    // New grains where the zone wants grains and the cell's grains fill less than half the
+    // room its points' material takes (a few stray grains cannot carry a cell's share: they
+    // would become heavy and spin fast to take its angular momentum).
+    const double room = coupler::template_packing_fraction<D>() * m.material_volume;
+    m.plan.make_grains = grain_share(m.plan.zone) > 0 && !m.members.empty() && volume[m.plan.cell] < 0.5 * room;
+    m.plan.points = m.points.moments;
     plans.push_back(m.plan);
   }
 
@@ -249,8 +254,9 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     total.add(P.moments);
     total.cell = m.plan.cell;
     double share = grain_share(m.plan.zone);
-    if (m.plan.make_grains && !made[k]) share = 0;  // no grain fitted: the points keep it all
-    if (G.moments.mass > 0) {
+    const bool grains_done = m.plan.make_grains && made[k];  // the DEM side gave the grains their share
+    if (m.plan.make_grains && !made[k] && !(G.moments.mass > 0)) share = 0;  // no grain fitted: points keep it all
+    if (G.moments.mass > 0 && !grains_done) {
       coupler::GrainCorrection<D> gc;
       gc.cell = m.plan.cell;
       gc.weight = m.plan.grain_weight;
@@ -264,11 +270,14 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
       corrections.push_back(gc);
     }
     const double point_share = 1.0 - share;
-    if (P.moments.mass > 0) {
-      if (point_share <= 0) {
-        for (std::size_t p : m.members) remove[p] = 1;
-        points_removed_ += static_cast<std::int64_t>(m.members.size());
-      } else {
+    // Points carrying less than half their share are renewed, as stray grains are (above).
+    const bool thin = P.moments.mass > 0 && P.moments.mass < 0.5 * point_share * total.mass;
+    if (P.moments.mass > 0 && (point_share <= 0 || thin)) {
+      for (std::size_t p : m.members) remove[p] = 1;
+      points_removed_ += static_cast<std::int64_t>(m.members.size());
+    }
+    if (P.moments.mass > 0 && !thin) {
+      if (point_share > 0) {
         const auto fix = coupler::rigid_correction<D>(P, total.scaled(point_share), centre);
         const Mat<D> spin = coupler::skew<D>(fix.omega);
         for (std::size_t p : m.members) {

@@ -158,10 +158,11 @@ enum ZoneSource : std::int32_t {
 //                       OracleSettings (the fix line's, changeable between runs)
 //   every DEM rank      CellVolume[] (its grains' volume per cell, for the packing fraction)
 //   MPM -> every rank   the new zone map; RezoneCell<D>[] (cells whose material moves)
-//   every DEM rank      makes grains where RezoneCell::make_grains (all ranks alike), then
-//                       BodySums<D>[] of its other grains in those cells; the leader adds
-//                       one byte per RezoneCell (grains made there)
-//   MPM -> every rank   GrainCorrection<D>[], applied to the grains; then the StepAck.
+//   every DEM rank      BodySums<D>[] of its grains in those cells; where
+//                       RezoneCell::make_grains, all DEM ranks together make new grains and
+//                       give them and the cell's old grains their share of the cell's material;
+//                       the leader adds one byte per RezoneCell (grains made there)
+//   MPM -> every rank   GrainCorrection<D>[] for the other cells holding grains; the StepAck.
 // The grains of a cell end with the share of its material their zone gives them (1 discrete,
 // the grain weight hybrid, 0 continuum), the points with the rest: exact to round-off.
 
@@ -176,8 +177,8 @@ template <int D>
 struct RezoneCell {
   std::uint64_t cell = 0;
   std::int32_t zone = 0;               ///< its new Zone
-  std::int32_t make_grains = 0;        ///< 1: it has points but no grains, and its zone wants grains
-  CellMoments<D> target;               ///< make_grains: what the new grains carry (their share)
+  std::int32_t make_grains = 0;        ///< 1: its zone wants grains and it has too few for their share
+  CellMoments<D> points;               ///< the sums of its points (make_grains: grains take share * (these + old grains))
   double gradient[D * D] = {};         ///< the points' mass-averaged velocity gradient (column-major)
   Occupancy occupancy = 0;             ///< sub-cells holding points (enrichment.hpp)
   double grain_weight = 1;             ///< the weight label of grains in this cell
