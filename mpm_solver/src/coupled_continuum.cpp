@@ -289,8 +289,11 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
         }
       }
     } else if (point_share > 0 && total.mass > 0) {
+      coupler::BodySums<D> material = G;  // new points move with the material's affine field
+      material.add(P);
       for (const auto& p : coupler::points_from_moments<D>(total.scaled(point_share), geometry,
-                                                           hello_.continuum.points_per_axis, point_share)) {
+                                                           hello_.continuum.points_per_axis, point_share,
+                                                           material.velocity_gradient(centre))) {
         new_points.push_back(p);
         new_weights.push_back(static_cast<float>(point_share));
       }

@@ -175,22 +175,45 @@ struct BodySums {
   using Mat = Eigen::Matrix<double, D, D>;
 
   CellMoments<D> moments;
-  double inertia_[D * D] = {};  ///< sum m ((|r|^2 + e) I - r r^T), r = x - reference; 2D: [0] only
+  double inertia_[D * D] = {};          ///< sum m ((|r|^2 + e) I - r r^T), r = x - reference; 2D: [0] only
+  double velocity_moment_[D * D] = {};  ///< sum m v r^T (for the bodies' velocity gradient)
+  double position_moment_[D * D] = {};  ///< sum m r r^T
 
   Eigen::Map<Mat> inertia() { return Eigen::Map<Mat>(inertia_); }
   Eigen::Map<const Mat> inertia() const { return Eigen::Map<const Mat>(inertia_); }
+  Eigen::Map<Mat> velocity_moment() { return Eigen::Map<Mat>(velocity_moment_); }
+  Eigen::Map<const Mat> velocity_moment() const { return Eigen::Map<const Mat>(velocity_moment_); }
+  Eigen::Map<Mat> position_moment() { return Eigen::Map<Mat>(position_moment_); }
+  Eigen::Map<const Mat> position_moment() const { return Eigen::Map<const Mat>(position_moment_); }
 
   /// One body: spin_L its own angular momentum, extra_sq its own inertia per mass (e).
   void add_body(const Vec& x, const Vec& v, double m, const Spin<D>& spin_L, double extra_sq,
                 const Mat& stress_volume, const Vec& reference) {
     moments.add_grain(x, v, m, spin_L, stress_volume);
+    const Vec r = x - reference;
     Mat J = Mat::Zero();
-    add_rotational_inertia<D>(J, m, Vec(x - reference), extra_sq);
+    add_rotational_inertia<D>(J, m, r, extra_sq);
     inertia() += J;
+    velocity_moment() += m * v * r.transpose();
+    position_moment() += m * r * r.transpose();
   }
   void add(const BodySums& o) {
     moments.add(o.moments);
     inertia() += o.inertia();
+    velocity_moment() += o.velocity_moment();
+    position_moment() += o.position_moment();
+  }
+  /// The bodies' mass-weighted least-squares velocity gradient, G minimising
+  /// sum m |v - V - G (x - X_c)|^2; zero when they do not span the space (one body, a row).
+  Mat velocity_gradient(const Vec& reference) const {
+    if (!(moments.mass > 0)) return Mat::Zero();
+    const Vec R = moments.first_moment() / moments.mass - reference;
+    const Vec V = moments.momentum() / moments.mass;
+    const Mat A = velocity_moment() - moments.mass * V * R.transpose();
+    const Mat B = position_moment() - moments.mass * R * R.transpose();
+    const double scale = B.trace() / D;
+    if (!(scale > 0) || B.determinant() < 1e-6 * std::pow(scale, D)) return Mat::Zero();
+    return A * B.inverse();
   }
 };
 static_assert(std::is_trivially_copyable_v<BodySums<2>> && std::is_trivially_copyable_v<BodySums<3>>,
@@ -283,11 +306,13 @@ Eigen::Matrix<double, D, 1> cell_center(const GridGeometry<D>& grid, const Eigen
 /// points' sum of stress*volume is m.stress_volume and their stress is the
 /// unscaled cell stress S/dx^D. Empty if m.mass <= 0.
 ///
-/// The lattice starts at rest and takes the rigid correction onto m (APIC points have
-/// their own inertia dx^2/2 per mass): v_p = P/M + Omega x r_p, C_p = skew(Omega).
+/// The lattice starts with the prior affine field `gradient` (v = G r_p, C = G; e.g. the
+/// grains' velocity gradient) and takes the rigid correction onto m (APIC points have their
+/// own inertia dx^2/2 per mass): v_p = G r_p + a + Omega x r_p, C_p = G + skew(Omega).
 template <int D>
 std::vector<NewPoint<D>> points_from_moments(const CellMoments<D>& m, const GridGeometry<D>& grid, int per_axis,
-                                             double volume_share) {
+                                             double volume_share,
+                                             const Eigen::Matrix<double, D, D>& gradient = Eigen::Matrix<double, D, D>::Zero()) {
   using Vec = Eigen::Matrix<double, D, 1>;
   using Mat = Eigen::Matrix<double, D, D>;
   if (!(m.mass > 0) || per_axis < 1) return {};
@@ -306,12 +331,14 @@ std::vector<NewPoint<D>> points_from_moments(const CellMoments<D>& m, const Grid
     for (int a = D - 1, k = p; a >= 0; --a, k /= per_axis) x[a] = lower[a] + (k % per_axis + 0.5) / per_axis * grid.dx;
     points[p].x = x;
     points[p].mass = m.mass / n;
-    at_rest.add_body(x, Vec::Zero(), points[p].mass, Spin<D>::Zero(), grid.dx * grid.dx / 2, Mat::Zero(), centre);
+    points[p].v = gradient * (x - centre);  // the prior field; the lattice's centre of mass is the cell centre
+    const Spin<D> spin = (points[p].mass * grid.dx * grid.dx / kQuadraticInverseInertia) * axial<D>(gradient);
+    at_rest.add_body(x, points[p].v, points[p].mass, spin, grid.dx * grid.dx / 2, Mat::Zero(), centre);
   }
   const RigidCorrection<D> fix = rigid_correction<D>(at_rest, m, centre);
   for (NewPoint<D>& pt : points) {
-    pt.v = fix.increment(pt.x);
-    pt.C = skew<D>(fix.omega);
+    pt.v += fix.increment(pt.x);
+    pt.C = gradient + skew<D>(fix.omega);
     pt.stress = stress;
     pt.mass *= fix.mass_factor;
     pt.volume = volume_share * cell_volume / n;
