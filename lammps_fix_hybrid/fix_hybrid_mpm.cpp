@@ -120,6 +120,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     return utils::inumeric(FLERR, val.c_str(), false, lmp);
   };
   coupler::ContinuumSettings &c = *settings;
+  bool pic_given = false;
   int iarg = 3;
   while (iarg < narg) {
     const std::string key = arg[iarg];
@@ -182,6 +183,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
       c.cfl = number(key, val);
       if (!(c.cfl > 0.0 && c.cfl <= 1.0)) illegal(fmt::format("keyword 'cfl' must be in (0, 1], not {}", val));
     } else if (key == "pic") {
+      pic_given = true;
       c.pic = number(key, val);
       if (!(c.pic >= 0.0 && c.pic <= 1.0)) illegal(fmt::format("keyword 'pic' must be in [0, 1], not {}", val));
     } else if (key == "support") {
@@ -225,6 +227,10 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     illegal(fmt::format("keyword 'adaptive' ({} steps) must be a multiple of 'every' ({}): zones change right "
                         "after an exchange", adapt_every, every));
   check_oracle();
+  // With moving zones the hybrid band lies inside the flow: taking the agreed field there
+  // (pic 1) erases the grains' fluctuations at every exchange and damps the flow (a column
+  // collapse ran out 35 % short); the impulse-only rule of DESIGN.md section 5 keeps them.
+  if (adapt_every > 0 && !pic_given) c.pic = 0.0;
   if (grain_type > atom->ntypes)
     illegal(fmt::format("keyword 'grain_type' {} is not an atom type (1 to {})", grain_type, atom->ntypes));
 
@@ -661,29 +667,28 @@ void FixHybridMPM::pre_exchange()
 }
 
 /* ----------------------------------------------------------------------
-   the volume of this rank's grains per grid cell (the oracle's packing
-   fraction), sparse: only cells holding grains
+   this rank's grains per grid cell: their volume (the oracle's packing
+   fraction) and carried mass, sparse: only cells holding grains
 ------------------------------------------------------------------------- */
 
 template <int D>
-std::vector<coupler::CellVolume> FixHybridMPM::cell_volumes()
+std::vector<coupler::CellGrains> FixHybridMPM::cell_grains()
 {
   const auto &grid = transfer<D>().grid();
-  std::map<std::size_t, double> volume;
+  std::map<std::size_t, coupler::CellGrains> cells;
   for (int i = 0; i < atom->nlocal; i++) {
     if (!(atom->mask[i] & groupbit)) continue;
     const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(atom->x[i]));
     if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) continue;
-    volume[coupler::cell_index<D>(grid, c)] += coupler::grain_volume<D>(atom->radius[i]);
+    const std::size_t k = coupler::cell_index<D>(grid, c);
+    auto &g = cells[k];
+    g.cell = k;
+    g.volume += coupler::grain_volume<D>(atom->radius[i]);
+    g.mass += atom->rmass[i];
   }
-  std::vector<coupler::CellVolume> out;
-  out.reserve(volume.size());
-  for (const auto &kv : volume) {
-    coupler::CellVolume v;
-    v.cell = kv.first;
-    v.volume = kv.second;
-    out.push_back(v);
-  }
+  std::vector<coupler::CellGrains> out;
+  out.reserve(cells.size());
+  for (const auto &kv : cells) out.push_back(kv.second);
   return out;
 }
 
@@ -713,18 +718,19 @@ const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
    material (points plus old grains), at the grains' solid density, with
    velocities from the continuum's affine field plus one rigid correction.
    All ranks compute the same grains; each makes those in its sub-domain.
-   old_sums: this rank's sums of the old grains per planned cell. Returns one
-   byte per cell: grains were made there.
+   old_sums: this rank's sums of the old grains per planned cell. Returns per
+   cell the share of its material the grains took where grains were made,
+   -1 elsewhere.
 ------------------------------------------------------------------------- */
 
 template <int D>
-std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
+std::vector<double> FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
                                                    const std::map<std::size_t, coupler::BodySums<D>> &old_sums,
                                                    bigint &made)
 {
   using Mat = Eigen::Matrix<double, D, D>;
   const auto &grid = transfer<D>().grid();
-  std::vector<signed char> made_in_cell(cells.size(), 0);
+  std::vector<double> made_in_cell(cells.size(), -1.0);
   made = 0;
   std::vector<std::size_t> making;    // planned cells that make grains
   std::map<std::uint64_t, std::size_t> making_slot;
@@ -845,7 +851,7 @@ std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::Re
     const double share = cell.grain_weight;
     const coupler::RigidCorrection<D> fix = coupler::rigid_correction<D>(bodies, material.scaled(share), centre);
     fixes[j] = fix;
-    made_in_cell[making[j]] = 1;
+    made_in_cell[making[j]] = share;
     for (const auto &g : kept) {
       double coord[3] = {0.0, 0.0, zmid};
       for (int a = 0; a < D; ++a) coord[a] = g.x[a];
@@ -872,7 +878,7 @@ std::vector<signed char> FixHybridMPM::make_grains(const std::vector<coupler::Re
   for (int i = 0; i < nlocal; i++) {
     if (!(atom->mask[i] & groupbit)) continue;
     const std::int64_t j = slot_of_atom(i);
-    if (j < 0 || !made_in_cell[making[j]]) continue;
+    if (j < 0 || made_in_cell[making[j]] < 0) continue;
     const coupler::RigidCorrection<D> &fix = fixes[j];
     const Vec<D> dv = fix.increment(Eigen::Map<const Vec<D>>(x[i]));
     for (int a = 0; a < D; ++a) v[i][a] += dv[a];
@@ -939,7 +945,7 @@ void FixHybridMPM::rezone(int source)
   supported.clear();
 
   // 1. zones: the grains' volume per cell goes to the MPM process, which runs the oracle
-  const std::vector<coupler::CellVolume> volumes = cell_volumes<D>();
+  const std::vector<coupler::CellGrains> volumes = cell_grains<D>();
   std::vector<signed char> new_zones;
   std::vector<coupler::RezoneCell<D>> cells;
   try {
@@ -1006,7 +1012,7 @@ void FixHybridMPM::rezone(int source)
 
   // 3. enrichment (collective over the DEM ranks)
   bigint made_local = 0;
-  const std::vector<signed char> made = make_grains<D>(cells, sums, made_local);
+  const std::vector<double> made = make_grains<D>(cells, sums, made_local);
 
   // 4. the MPM process answers what the grains of each cell become
   std::vector<coupler::GrainCorrection<D>> corrections;
@@ -1076,6 +1082,14 @@ void FixHybridMPM::rezone(int source)
   *last_ack = ack;
 
   grain_totals(grains_after);
+  // how far the carried masses drifted from the grains' share of their solid mass
+  double drift[2] = {-BIG, 0.0}, drift_all[2];    // -lightest, heaviest
+  for (int i = 0; i < atom->nlocal; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    const double f = atom->rmass[i] / (weight[i] * settings->grain_density * coupler::grain_volume<D>(atom->radius[i]));
+    drift[0] = std::max(drift[0], -f), drift[1] = std::max(drift[1], f);
+  }
+  MPI_Allreduce(drift, drift_all, 2, MPI_DOUBLE, MPI_MAX, world);
   bigint local[3] = {deleted_local, made_local, hybrid_local}, all[3];
   MPI_Allreduce(local, all, 3, MPI_LMP_BIGINT, MPI_SUM, world);
   atom->natoms += all[1] - all[0];
@@ -1087,10 +1101,12 @@ void FixHybridMPM::rezone(int source)
   if (comm->me == 0)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: step {}: {} grains became {} material points, {} grains are "
                                     "hybrid (weight {}), {} grains made from points; {} cells moved; grid cells "
-                                    "in the box: {} continuum, {} hybrid, {} discrete\n",
+                                    "in the box: {} continuum, {} hybrid, {} discrete; carried mass / solid mass "
+                                    "{:.3g} to {:.3g}\n",
                                     update->ntimestep, all[0], ack.points_made, all[2], settings->grain_weight, all[1],
                                     ack.moved_cells, ack.zone_cells[coupler::kContinuum],
-                                    ack.zone_cells[coupler::kHybrid], ack.zone_cells[coupler::kDiscrete]));
+                                    ack.zone_cells[coupler::kHybrid], ack.zone_cells[coupler::kDiscrete],
+                                    -drift_all[0], drift_all[1]));
   // what the rezone did to the totals of grains plus points (exact up to round-off)
   if (comm->me == 0) {
     double after[7] = {ack.mass, ack.momentum[0], ack.momentum[1], ack.momentum[2], ack.angular[0], ack.angular[1],

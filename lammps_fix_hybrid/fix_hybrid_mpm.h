@@ -33,7 +33,7 @@ template <int D> class GrainTransfer;
 template <int D> struct PackingTemplate;
 template <int D> struct RezoneCell;
 template <int D> struct BodySums;
-struct CellVolume;
+struct CellGrains;
 struct OracleSettings;
 }
 
@@ -128,8 +128,8 @@ class FixHybridMPM : public Fix {
 
   void connect();
   template <int D> void rezone(int source);
-  template <int D> std::vector<coupler::CellVolume> cell_volumes();
-  template <int D> std::vector<signed char> make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
+  template <int D> std::vector<coupler::CellGrains> cell_grains();
+  template <int D> std::vector<double> make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
                                                         const std::map<std::size_t, coupler::BodySums<D>> &old_sums,
                                                         bigint &made);
   template <int D> void sum_over_ranks(std::vector<coupler::BodySums<D>> &sums);

@@ -74,8 +74,8 @@ def test_handoff_cycle_in_a_bed_at_rest_releases_little_energy(tmp_path, hybrid_
     template. The new packing is not the old one and its contacts carry no load yet, so the
     bed above sags into it and bounces, weakly damped. The kinetic energy this releases
     (grains plus points) stays below 2 % of the bed's potential energy m g y_cm, the centre of
-    mass ends less than 4 % lower, and the motion dies away.
-    Measured: KE peak 1.2 % of m g y_cm, centre of mass 3.2 % lower (mean of the last third)."""
+    mass ends less than 5 % lower, and the motion dies away.
+    Measured: KE peak 1.5 % of m g y_cm, centre of mass 3.8 % lower (mean of the last third)."""
     log = run_deck(tmp_path, CYCLE_DECK, 2)
     counts, totals = rezones(log)
     made = sum(c["grains_made"] for c in counts)
@@ -103,5 +103,5 @@ def test_handoff_cycle_in_a_bed_at_rest_releases_little_energy(tmp_path, hybrid_
     print(f"handoff cycle: KE peak {ke.max() / pe0:.2%} of m g y_cm, centre of mass {1 - pe_end / pe0:.2%} "
           f"lower, KE in the last quarter at most {tail / ke.max():.1%} of the peak")
     assert ke.max() < 0.02 * pe0
-    assert pe_end > 0.96 * pe0
+    assert pe_end > 0.95 * pe0
     assert tail < 0.1 * ke.max()

@@ -134,7 +134,8 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
     given = link.receive(0, {coupler::kTagZones}, "the zone map" + at).as_array<std::int8_t>();
   else
     oracle = link.receive(0, {coupler::kTagOracle}, "the oracle settings" + at).as<coupler::OracleSettings>();
-  const auto volumes = receive_from_all<coupler::CellVolume>(link, coupler::kTagVolumes, "the grain volumes" + at);
+  const auto volumes =
+      receive_from_all<coupler::CellGrains>(link, coupler::kTagVolumes, "the grain volumes" + at);
   auto fail = [&](const std::string& what) {
     const coupler::StepAck ack = error_ack(h.step, what);
     ack_all(link, ack, "the rezone's error" + at);
@@ -153,7 +154,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
     link.send_array(r, coupler::kTagRezoneCells, cells, "the cells to rezone" + at);
   }
   const auto grains = receive_from_all<coupler::BodySums<D>>(link, coupler::kTagGrainSums, "the grain sums" + at);
-  const auto made = link.receive(0, {coupler::kTagCreated}, "the cells with new grains" + at).as_array<std::int8_t>();
+  const auto made = link.receive(0, {coupler::kTagCreated}, "the cells with new grains" + at).as_array<double>();
   std::vector<coupler::GrainCorrection<D>> corrections;
   try {
     corrections = continuum->complete_rezone(grains, made);

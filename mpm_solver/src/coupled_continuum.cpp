@@ -78,6 +78,7 @@ namespace {
 /// bound (measured in a settled column: vertical stress 10 % above the weight). A 10 % leak
 /// keeps it bounded and leaves the steady support within a few percent.
 constexpr double kSupportLeak = 0.1;
+
 }  // namespace
 
 template <int D>
@@ -106,7 +107,7 @@ double CoupledContinuum<D>::grain_share(int zone) const {
 template <int D>
 std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     double time, int zone_source, const std::vector<std::int8_t>& given, const coupler::OracleSettings& os,
-    const std::vector<std::vector<coupler::CellVolume>>& volumes) {
+    const std::vector<std::vector<coupler::CellGrains>>& volumes) {
   if (step_open()) throw UserError("internal: a rezone while a substep is open");
   const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(solver_.grid());
   const coupler::ContinuumSettings& cs = hello_.continuum;
@@ -117,12 +118,13 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   for (std::size_t k : support_nodes_) support_force_[k].setZero(), support_mass_[k] = 0.0;
   support_nodes_.clear();
   std::fill(solver_.points().body_accel.begin(), solver_.points().body_accel.end(), Vec<D>::Zero());
-  std::vector<double> volume(n, 0.0);
+  std::vector<double> volume(n, 0.0), grain_mass(n, 0.0);
   for (const auto& list : volumes)
     for (const auto& r : list) {
       if (r.cell >= n)
         throw UserError("a DEM rank sent the grain volume of cell " + std::to_string(r.cell) + " outside the grid");
       volume[r.cell] += r.volume;
+      grain_mass[r.cell] += r.mass;
     }
   auto& pts = solver_.points();
   std::vector<std::uint8_t> has_points(n, 0);
@@ -140,12 +142,12 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     next = given;
   } else {
     std::vector<double> shear;
-    if (os.max_shear_rate > 0) {  // the fastest shearing point of each cell, sqrt(2 D:D)
+    if (os.max_shear_rate > 0) {
+      // the fastest shearing point of each cell (grains' velocities are too noisy for a shear
+      // rate per cell: a cell turned discrete stays so until its zone wants points again)
       shear.assign(n, 0.0);
-      for (std::size_t p = 0; p < pts.size(); ++p) {
-        const Mat<D> Dp = 0.5 * (pts.C[p] + pts.C[p].transpose());
-        shear[point_cell[p]] = std::max(shear[point_cell[p]], std::sqrt(2.0) * Dp.norm());
-      }
+      for (std::size_t p = 0; p < pts.size(); ++p)
+        shear[point_cell[p]] = std::max(shear[point_cell[p]], coupler::shear_rate<D>(pts.C[p]));
     }
     const auto walls = coupler::cells_outside_box<D>(geometry, Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
                                                      Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>());
@@ -198,11 +200,13 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   plans.reserve(moving_.size());
   for (MovingCell& m : moving_) {
     if (m.points.moments.mass > 0) Eigen::Map<Mat<D>>(m.plan.gradient) /= m.points.moments.mass;
-    // New grains where the zone wants grains and the cell's grains fill less than half the
-    // room its points' material takes (a few stray grains cannot carry a cell's share: they
-    // would become heavy and spin fast to take its angular momentum).
-    const double room = coupler::template_packing_fraction<D>() * m.material_volume;
-    m.plan.make_grains = grain_share(m.plan.zone) > 0 && !m.members.empty() && volume[m.plan.cell] < 0.5 * room;
+    // New grains where the zone wants grains and the cell's grains are too few for their
+    // share: they would have to be heavier than kHeaviestGrains times their solid mass (and
+    // a few stray grains would spin fast to take the cell's angular momentum).
+    const double share = grain_share(m.plan.zone);
+    const double needed = share * (grain_mass[m.plan.cell] + m.points.moments.mass);
+    m.grain_solid_mass = cs.grain_density * volume[m.plan.cell];
+    m.plan.make_grains = share > 0 && !m.members.empty() && needed > coupler::kHeaviestGrains * share * m.grain_solid_mass;
     m.plan.points = m.points.moments;
     plans.push_back(m.plan);
   }
@@ -221,7 +225,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
 
 template <int D>
 std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
-    const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<std::int8_t>& made) {
+    const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<double>& made) {
   const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(solver_.grid());
   if (made.size() != moving_.size())
     throw UserError("the DEM side reported new grains for " + std::to_string(made.size()) + " cells, " +
@@ -254,8 +258,9 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     total.add(P.moments);
     total.cell = m.plan.cell;
     double share = grain_share(m.plan.zone);
-    const bool grains_done = m.plan.make_grains && made[k];  // the DEM side gave the grains their share
-    if (m.plan.make_grains && !made[k] && !(G.moments.mass > 0)) share = 0;  // no grain fitted: points keep it all
+    const bool grains_done = m.plan.make_grains && made[k] >= 0;  // the DEM side gave the grains their share
+    if (grains_done) share = made[k];
+    else if (m.plan.make_grains && !(G.moments.mass > 0)) share = 0;  // no grain fitted: points keep it all
     if (G.moments.mass > 0 && !grains_done) {
       coupler::GrainCorrection<D> gc;
       gc.cell = m.plan.cell;

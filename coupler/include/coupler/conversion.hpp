@@ -166,6 +166,38 @@ static_assert(std::is_trivially_copyable_v<CellMoments<2>> && std::is_trivially_
 //                                                  -> J w = L_t - f L - X_c x M_t a.
 // For points "spin += w" is "C += skew(w)" (axial(skew(w)) = 2 w, APIC spin m dx^2/4 axial(C)).
 
+/// A rezone makes new grains beside a cell's grains that would otherwise carry more than this
+/// times their share of their solid mass. Grains and points of a hybrid cell can overlap in
+/// space (the agreement aligns their velocities, not their positions), so a cell may hold
+/// more material than its grains can at their density.
+inline constexpr double kHeaviestGrains = 1.2;
+
+/// The mass-weighted least-squares velocity gradient G of bodies, minimising
+/// sum m |v - V - G (x - X_c)|^2, from additive sums: mass M, sum m x, sum m v, and about
+/// `reference` sum m v r^T and sum m r r^T (r = x - reference). Zero when the bodies do not
+/// span the space (one body, a row).
+template <int D>
+Eigen::Matrix<double, D, D> velocity_gradient(double mass, const Eigen::Matrix<double, D, 1>& first_moment,
+                                              const Eigen::Matrix<double, D, 1>& momentum,
+                                              const Eigen::Matrix<double, D, D>& velocity_moment,
+                                              const Eigen::Matrix<double, D, D>& position_moment,
+                                              const Eigen::Matrix<double, D, 1>& reference) {
+  using Mat = Eigen::Matrix<double, D, D>;
+  if (!(mass > 0)) return Mat::Zero();
+  const Eigen::Matrix<double, D, 1> R = first_moment / mass - reference, V = momentum / mass;
+  const Mat A = velocity_moment - mass * V * R.transpose();
+  const Mat B = position_moment - mass * R * R.transpose();
+  const double scale = B.trace() / D;
+  if (!(scale > 0) || B.determinant() < 1e-6 * std::pow(scale, D)) return Mat::Zero();
+  return A * B.inverse();
+}
+
+/// Shear rate of a velocity gradient: sqrt(2 D:D), D its symmetric part.
+template <int D>
+double shear_rate(const Eigen::Matrix<double, D, D>& gradient) {
+  return std::sqrt(2.0) * (0.5 * (gradient + gradient.transpose())).norm();
+}
+
 /// Sums over a set of bodies that the rigid correction needs: the cell moments and the
 /// inertia about a reference point (the cell centre, so that the parallel-axis shift to the
 /// centre of mass cancels little). Additive over bodies and over ranks; sent as bytes.
@@ -203,17 +235,10 @@ struct BodySums {
     velocity_moment() += o.velocity_moment();
     position_moment() += o.position_moment();
   }
-  /// The bodies' mass-weighted least-squares velocity gradient, G minimising
-  /// sum m |v - V - G (x - X_c)|^2; zero when they do not span the space (one body, a row).
+  /// The bodies' mass-weighted least-squares velocity gradient (velocity_gradient below).
   Mat velocity_gradient(const Vec& reference) const {
-    if (!(moments.mass > 0)) return Mat::Zero();
-    const Vec R = moments.first_moment() / moments.mass - reference;
-    const Vec V = moments.momentum() / moments.mass;
-    const Mat A = velocity_moment() - moments.mass * V * R.transpose();
-    const Mat B = position_moment() - moments.mass * R * R.transpose();
-    const double scale = B.trace() / D;
-    if (!(scale > 0) || B.determinant() < 1e-6 * std::pow(scale, D)) return Mat::Zero();
-    return A * B.inverse();
+    return coupler::velocity_gradient<D>(moments.mass, moments.first_moment(), moments.momentum(), velocity_moment(),
+                                         position_moment(), reference);
   }
 };
 static_assert(std::is_trivially_copyable_v<BodySums<2>> && std::is_trivially_copyable_v<BodySums<3>>,

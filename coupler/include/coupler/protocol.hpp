@@ -59,14 +59,15 @@ enum Tag : int {
   kTagStepAck = 7311,     ///< MPM -> every DEM rank, StepAck (last message of an exchange)
   kTagZones = 7312,       ///< the zone map, one Zone byte per grid cell: DEM leader -> MPM (a given
                           ///< map), MPM -> every DEM rank (the new map of a rezone)
-  kTagVolumes = 7313,     ///< every DEM rank -> MPM, CellVolume[]: its grains' volume per cell
+  kTagVolumes = 7313,     ///< every DEM rank -> MPM, CellGrains[]: its grains' volume and mass per cell
   kTagNodes = 7314,       ///< every DEM rank -> MPM, NodeRecord[] of its coupled grains
   kTagNodeReply = 7315,   ///< MPM -> every DEM rank, NodeUpdate[] in the order of its NodeRecords
   kTagGrains = 7316,      ///< every DEM rank -> MPM at output frames, GrainRecord[]
   kTagState = 7317,       ///< DEM leader -> MPM, StateRequest (save or load the MPM state)
   kTagRezoneCells = 7318, ///< MPM -> every DEM rank, RezoneCell<D>[]: the cells whose material moves
   kTagGrainSums = 7319,   ///< every DEM rank -> MPM, BodySums<D>[] of its grains in those cells
-  kTagCreated = 7321,     ///< DEM leader -> MPM, one byte per RezoneCell: 1 if grains were made there
+  kTagCreated = 7321,     ///< DEM leader -> MPM, one double per RezoneCell: the share of its material
+                          ///< its grains took where grains were made, -1 elsewhere
   kTagCorrections = 7322, ///< MPM -> every DEM rank, GrainCorrection<D>[] for the cells holding grains
   kTagOracle = 7323,      ///< DEM leader -> MPM, OracleSettings of a rezone by the oracle
   kTagFinish = 7320,      ///< DEM -> MPM, Finish: the coupled run is over, MPM exits 0
@@ -156,20 +157,22 @@ enum ZoneSource : std::int32_t {
 // A rezone (kStepRezone), all messages in this order:
 //   DEM leader -> MPM   StepHeader; the zone map if zone_source == kZonesGiven, else the
 //                       OracleSettings (the fix line's, changeable between runs)
-//   every DEM rank      CellVolume[] (its grains' volume per cell, for the packing fraction)
+//   every DEM rank      CellGrains[] (its grains' volume and mass per cell)
 //   MPM -> every rank   the new zone map; RezoneCell<D>[] (cells whose material moves)
 //   every DEM rank      BodySums<D>[] of its grains in those cells; where
 //                       RezoneCell::make_grains, all DEM ranks together make new grains and
 //                       give them and the cell's old grains their share of the cell's material;
-//                       the leader adds one byte per RezoneCell (grains made there)
+//                       the leader adds one double per RezoneCell (the grains' share there)
 //   MPM -> every rank   GrainCorrection<D>[] for the other cells holding grains; the StepAck.
 // The grains of a cell end with the share of its material their zone gives them (1 discrete,
 // the grain weight hybrid, 0 continuum), the points with the rest: exact to round-off.
 
-/// DEM rank -> MPM: the summed volume of its grains whose centre lies in a cell.
-struct CellVolume {
+/// DEM rank -> MPM: its grains whose centre lies in a cell, summed: their volume (the packing
+/// fraction) and carried mass (whether they can take their share of the cell's material).
+struct CellGrains {
   std::uint64_t cell = 0;
   double volume = 0;
+  double mass = 0;
 };
 
 /// MPM -> DEM ranks: one cell whose material moves between grains and points.

@@ -23,18 +23,18 @@ class CoupledContinuum {
   explicit CoupledContinuum(const coupler::Hello& hello);
 
   /// First half of a rezone (coupler/protocol.hpp): the new zones - `given` (zone_source
-  /// kZonesGiven) or the oracle's, from the grains' volumes per cell of every DEM rank and the
+  /// kZonesGiven) or the oracle's, from the grains' sums per cell of every DEM rank and the
   /// points - and the cells whose material moves, with what new grains there must carry.
   /// `oracle`: its settings (not used with given zones). `time`: the DEM time (the start of the continuum's clock at the first rezone).
   std::vector<coupler::RezoneCell<D>> plan_rezone(double time, int zone_source, const std::vector<std::int8_t>& given,
                                                   const coupler::OracleSettings& oracle,
-                                                  const std::vector<std::vector<coupler::CellVolume>>& volumes);
-  /// Second half: with every DEM rank's grain sums in those cells and which cells got new
-  /// grains (one byte per planned cell), moves the points' share (correct, remove or make
+                                                  const std::vector<std::vector<coupler::CellGrains>>& grains);
+  /// Second half: with every DEM rank's grain sums in those cells and the share the grains
+  /// took where new grains were made (one per planned cell, -1 elsewhere), moves the points' share (correct, remove or make
   /// points) and returns what the grains of each cell become. Exact: the grains of a cell
   /// end with its zone's grain share of the cell's material, the points with the rest.
   std::vector<coupler::GrainCorrection<D>> complete_rezone(
-      const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<std::int8_t>& made);
+      const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<double>& made);
   const std::vector<std::int8_t>& zones() const { return zones_; }
 
   /// Advances the continuum to `time` in stable substeps and stops inside the last one,
@@ -74,6 +74,7 @@ class CoupledContinuum {
     coupler::BodySums<D> points;
     std::vector<std::size_t> members;
     double material_volume = 0;  ///< the room the points' material takes: sum of volume / share
+    double grain_solid_mass = 0; ///< the cell's grains at their solid density
   };
   std::vector<MovingCell> moving_;
   std::int64_t zone_cells_[3] = {0, 0, 0};
