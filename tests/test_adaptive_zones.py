@@ -105,3 +105,70 @@ def test_handoff_cycle_in_a_bed_at_rest_releases_little_energy(tmp_path, hybrid_
     assert ke.max() < 0.02 * pe0
     assert pe_end > 0.95 * pe0
     assert tail < 0.1 * ke.max()
+
+
+# ---- column collapse with adaptive zones (input_decks/column_collapse/dem_2d.lmp, hybrid 2) -----
+
+def material_distance(grains: dict, points: dict, dx: float, container_lo: np.ndarray, surface_packing: float,
+                      cells: np.ndarray) -> np.ndarray:
+    """Distance of the centres of `cells` (integer cell coordinates from container_lo) to the
+    nearest centre of a cell outside the material, minus dx/2, as the oracle measures it:
+    outside = packing fraction (grain area in the cell of its centre, over dx^2) below
+    surface_packing and no material point, or outside the container. Brute force."""
+    n = np.ceil((np.concatenate([grains["position"][:, :2], points["position"][:, :2]]).max(axis=0)
+                 - container_lo) / dx).astype(int) + 3
+    area = np.zeros(n)
+    gc = np.floor((grains["position"][:, :2] - container_lo) / dx).astype(int)
+    ok = (gc >= 0).all(axis=1)
+    np.add.at(area, (gc[ok, 0], gc[ok, 1]), np.pi * grains["radius"][ok] ** 2)
+    material = area / dx ** 2 >= surface_packing
+    pc = np.floor((points["position"][:, :2] - container_lo) / dx).astype(int)
+    material[pc[:, 0], pc[:, 1]] = True
+    ii, jj = np.nonzero(~material)
+    outside = np.stack([ii, jj], axis=1)
+    # the container's walls: the cells just beyond them count as outside
+    walls = np.array([[-1, j] for j in range(-1, n[1])] + [[i, -1] for i in range(n[0])])
+    outside = np.concatenate([outside, walls])
+    d = np.sqrt(((cells[:, None, :] - outside[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
+    return (d - 0.5) * dx
+
+
+def test_discrete_zone_follows_the_free_surface_of_a_collapsing_column(tmp_path, hybrid_programs):
+    """The 2D column collapse (a = 2, L0 = 25 d, about 1300 disks) from a settled column, coupled
+    with adaptive zones only (no continuum region on the fix line): at the start the oracle
+    makes the column's interior continuum; as the column collapses and spreads, the continuum
+    shrinks and moves with the material. At the end the zone map differs from the start, the
+    top of the continuum has come down with the free surface, and no continuum point lies
+    closer to the free surface (or the back wall and floor) than the depth L = 2 cells (hdepth;
+    the continuum starts at L + h = 3 cells): the grains along the free surface are discrete."""
+    import os
+    from conftest import BUILD
+    import mpm_results
+    from dem_collapse import run
+    os.environ.setdefault("HYBRID_BUILD_DIR", str(BUILD))
+    os.environ["OMP_NUM_THREADS"] = "1"
+    width, d = 0.05, 0.002
+    dx = width / 10
+    res = run(aspect=2.0, width=width, d=d, np_=2, out=tmp_path / "hybrid", extra_vars={"mu": 0.5, "e": 0.5},
+              hybrid_vars={"hybrid": 2, "hdepth": 2 * dx}, timeout=1200)
+    print(res.summary())
+    log = (tmp_path / "hybrid" / "log.lammps").read_text()
+    zones = [tuple(map(int, m)) for m in
+             re.findall(r"grid cells in the box: (\d+) continuum, (\d+) hybrid, (\d+) discrete", log)]
+    assert len(zones) > 50
+    assert zones[0][0] > 10 and zones[-1] != zones[0]
+    moved = sum(c["cells"] for c in rezones(log)[0][1:])
+    assert moved > 50
+    frames = mpm_results.Run(tmp_path / "hybrid" / "frames")
+    first, last = frames.frame(0), frames.frame(-1)
+    cont0, cont1 = first["zone"] == 2, last["zone"] == 2
+    assert cont0.sum() > 50 and cont1.sum() > 0
+    # the continuum came down with the free surface (the column's height halves)
+    assert last["position"][cont1, 1].max() < first["position"][cont0, 1].max() - 3 * dx
+    grains = mpm_results.read_grains(tmp_path / "hybrid" / "frames", -1)
+    lo = np.zeros(2)  # the container: back wall x = 0, floor y = 0
+    cells = np.unique(np.floor((last["position"][cont1, :2] - lo) / dx).astype(int), axis=0)
+    dist = material_distance(grains, last, dx, lo, 0.3, cells)
+    print(f"continuum cells at the end: {len(cells)}, nearest to the surface or walls {dist.min() / dx:.2f} cells; "
+          f"zones first {zones[0]}, last {zones[-1]}; runout {res.runout:.2f}")
+    assert dist.min() >= 2 * dx
