@@ -221,21 +221,28 @@ def settled_path(aspect: float, width: float, d: float, seed: int, extra: dict) 
     return cache_root() / f"a{aspect:g}_w{width:g}_d{d:g}_s{seed}_{key}_{deck_hash}" / "settled.restart"
 
 
-def _lammps(variables: dict, out: Path, np_: int, lmp: str, timeout: float,
-            hybrid: bool = False) -> tuple[subprocess.CompletedProcess, float]:
-    """Runs the deck with `variables`: stock LAMMPS, or coupled through tools/hybrid_launch.py."""
-    args = ["-log", str(out / "log.lammps"), "-screen", "none"]
+def run_lammps(deck: Path, variables: dict, log: Path, np_: int, lmp: str, timeout: float,
+               hybrid: bool = False) -> tuple[subprocess.CompletedProcess, float]:
+    """Runs `deck` with `variables` (-var NAME VALUE), its log in `log`: stock LAMMPS on np_
+    ranks (tools/mpirun.sh), or coupled through tools/hybrid_launch.py. Returns the completed
+    process and its wall time."""
+    args = ["-log", str(log), "-screen", "none"]
     for k, v in variables.items():
         args += ["-var", k, str(v)]
     if hybrid:
-        cmd = [sys.executable, str(REPO / "tools" / "hybrid_launch.py"), "-np", str(np_), str(DECK)] + args
+        cmd = [sys.executable, str(REPO / "tools" / "hybrid_launch.py"), "-np", str(np_), str(deck)] + args
     else:
-        cmd = [lmp, "-in", str(DECK)] + args
+        cmd = [lmp, "-in", str(deck)] + args
         if np_ > 1:
             cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
     t0 = time.time()
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
     return proc, time.time() - t0
+
+
+def _lammps(variables: dict, out: Path, np_: int, lmp: str, timeout: float,
+            hybrid: bool = False) -> tuple[subprocess.CompletedProcess, float]:
+    return run_lammps(DECK, variables, out / "log.lammps", np_, lmp, timeout, hybrid)
 
 
 def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,

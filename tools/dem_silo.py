@@ -63,7 +63,7 @@ REPO = Path(__file__).resolve().parent.parent
 DECK = REPO / "input_decks" / "silo" / "dem_2d.lmp"
 HYBRID_DECK = REPO / "input_decks" / "silo" / "hybrid_2d.lmp"
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from dem_collapse import max_overlap, read_dump  # noqa: E402
+from dem_collapse import max_overlap, read_dump, run_lammps  # noqa: E402
 
 G = 9.81
 BEVERLOO_C2D = math.pi / 4   # free-fall arch with Janda et al. 2012's outlet profiles (see above)
@@ -225,19 +225,7 @@ def settled_path(width: float, height: float, d: float, seed: int, extra: dict,
 
 def _lammps(variables: dict, log: Path, np_: int, lmp: str,
             timeout: float, hybrid: bool = False) -> tuple[subprocess.CompletedProcess, float]:
-    """Runs the deck with `variables`: stock LAMMPS, or coupled through tools/hybrid_launch.py."""
-    args = ["-log", str(log), "-screen", "none"]
-    for k, v in variables.items():
-        args += ["-var", k, str(v)]
-    if hybrid:
-        cmd = [sys.executable, str(REPO / "tools" / "hybrid_launch.py"), "-np", str(np_), str(DECK)] + args
-    else:
-        cmd = [lmp, "-in", str(DECK)] + args
-        if np_ > 1:
-            cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
-    t0 = time.time()
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
-    return proc, time.time() - t0
+    return run_lammps(DECK, variables, log, np_, lmp, timeout, hybrid)
 
 
 def _failed(what: str, proc: subprocess.CompletedProcess, log: Path) -> RuntimeError:
