@@ -940,9 +940,6 @@ void FixHybridMPM::rezone(int source)
 
   double grains_before[7], grains_after[7];
   grain_totals(grains_before);
-  // the support force acted between grains and points that change now: both sides drop it
-  for (int i = 0; i < atom->nlocal; i++) support[i][0] = support[i][1] = support[i][2] = 0.0;
-  supported.clear();
 
   // 1. zones: the grains' volume per cell goes to the MPM process, which runs the oracle
   const std::vector<coupler::CellGrains> volumes = cell_grains<D>();
@@ -1070,8 +1067,15 @@ void FixHybridMPM::rezone(int source)
       deleted_local++;
     }
 
-  // 6. the acknowledgement with the continuum's totals
+  // 6. the grains' support force now (deleted, made, rescaled grains changed it): the MPM
+  // process balances the points' reaction with it; then the acknowledgement with its totals
+  double force_local[3] = {0.0, 0.0, 0.0}, force[3];
+  for (int i = 0; i < atom->nlocal; i++)
+    for (int a = 0; a < 3; a++) force_local[a] += atom->rmass[i] * support[i][a];
+  MPI_Allreduce(force_local, force, 3, MPI_DOUBLE, MPI_SUM, world);
   try {
+    if (comm->me == 0)
+      link->send_array(0, coupler::kTagSupport, std::vector<double>(force, force + 3), "the grains' support force" + at);
     ack = link->receive(0, {coupler::kTagStepAck}, "the rezone's acknowledgement" + at).as<coupler::StepAck>();
     if (ack.status != 0) status = 2, what = "the MPM process could not rezone: " + coupler::get_text(ack.message);
   } catch (const coupler::PeerError &e) {

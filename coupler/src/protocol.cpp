@@ -189,6 +189,7 @@ const char* tag_name(int tag) {
     case kTagCreated: return "GrainsMade";
     case kTagCorrections: return "GrainCorrections";
     case kTagOracle: return "OracleSettings";
+    case kTagSupport: return "SupportForce";
     case kTagNodes: return "NodeRecords";
     case kTagNodeReply: return "NodeUpdates";
     case kTagGrains: return "GrainRecords";

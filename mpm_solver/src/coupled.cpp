@@ -163,6 +163,10 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   }
   for (int r = 0; r < link.remote_size(); ++r)
     link.send_array(r, coupler::kTagCorrections, corrections, "the grain corrections" + at);
+  const auto support = link.receive(0, {coupler::kTagSupport}, "the grains' support force" + at).as_array<double>();
+  if (support.size() != 3) return fail("protocol error: the grains' support force has " +
+                                       std::to_string(support.size()) + " components");
+  continuum->balance_support(Eigen::Map<const Eigen::Vector3d>(support.data()).head<D>());
   coupler::StepAck ack = continuum->totals(h.step);
   say(opt, "step " + std::to_string(h.step) + ": rezone moved the material of " + std::to_string(ack.moved_cells) +
                " cells (" + std::to_string(ack.points_made) + " points made, " + std::to_string(ack.points_removed) +

@@ -113,11 +113,6 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   const coupler::ContinuumSettings& cs = hello_.continuum;
   const std::size_t n = zones_.size();
   before_ = totals(0);
-  // The support force acted between grains and points that a rezone deletes, makes or
-  // rescales: both sides drop it (the DEM side too) and the next exchanges build it again.
-  for (std::size_t k : support_nodes_) support_force_[k].setZero(), support_mass_[k] = 0.0;
-  support_nodes_.clear();
-  std::fill(solver_.points().body_accel.begin(), solver_.points().body_accel.end(), Vec<D>::Zero());
   std::vector<double> volume(n, 0.0), grain_mass(n, 0.0);
   for (const auto& list : volumes)
     for (const auto& r : list) {
@@ -453,6 +448,24 @@ void CoupledContinuum<D>::apply_support_reaction() {
                                       });
     pts.body_accel[p] = a;
   }
+}
+
+template <int D>
+void CoupledContinuum<D>::balance_support(const Vec<D>& grain_force) {
+  // A rezone deletes, makes and rescales grains and points that the support force acts on:
+  // what no longer cancels is spread over the points by mass, so that the grains' and the
+  // points' support forces still add up to zero (the force stays where it is elsewhere; dropping
+  // it at every rezone made the grains rattle).
+  auto& pts = solver_.points();
+  Vec<D> force = grain_force;
+  double mass = 0;
+  for (std::size_t p = 0; p < pts.size(); ++p) {
+    force += pts.mass[p] * pts.body_accel[p];
+    mass += pts.mass[p];
+  }
+  if (!(mass > 0)) return;
+  const Vec<D> correction = -force / mass;
+  for (auto& a : pts.body_accel) a += correction;
 }
 
 template <int D>

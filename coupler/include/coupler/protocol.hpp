@@ -70,6 +70,7 @@ enum Tag : int {
                           ///< its grains took where grains were made, -1 elsewhere
   kTagCorrections = 7322, ///< MPM -> every DEM rank, GrainCorrection<D>[] for the cells holding grains
   kTagOracle = 7323,      ///< DEM leader -> MPM, OracleSettings of a rezone by the oracle
+  kTagSupport = 7324,     ///< DEM leader -> MPM, 3 doubles: the grains' support force after a rezone
   kTagFinish = 7320,      ///< DEM -> MPM, Finish: the coupled run is over, MPM exits 0
   kTagAbort = 7330,       ///< DEM -> MPM, AbortNote: DEM stopped on an error, MPM exits 1
 };
@@ -163,7 +164,10 @@ enum ZoneSource : std::int32_t {
 //                       RezoneCell::make_grains, all DEM ranks together make new grains and
 //                       give them and the cell's old grains their share of the cell's material;
 //                       the leader adds one double per RezoneCell (the grains' share there)
-//   MPM -> every rank   GrainCorrection<D>[] for the other cells holding grains; the StepAck.
+//   MPM -> every rank   GrainCorrection<D>[] for the other cells holding grains
+//   DEM leader -> MPM   the grains' total support force after the changes (3 doubles); the
+//                       points' reaction is balanced with it (momentum stays exact)
+//   MPM -> every rank   the StepAck.
 // The grains of a cell end with the share of its material their zone gives them (1 discrete,
 // the grain weight hybrid, 0 continuum), the points with the rest: exact to round-off.
 

@@ -36,6 +36,9 @@ class CoupledContinuum {
   std::vector<coupler::GrainCorrection<D>> complete_rezone(
       const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<double>& made);
   const std::vector<std::int8_t>& zones() const { return zones_; }
+  /// After a rezone: balances the points' reaction to the support force against the grains'
+  /// total support force (sum m a), which the rezone changed.
+  void balance_support(const Vec<D>& grain_force);
 
   /// Advances the continuum to `time` in stable substeps and stops inside the last one,
   /// after its grid update: the grid then holds the node velocities at `time`. Does nothing
