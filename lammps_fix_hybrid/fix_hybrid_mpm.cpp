@@ -62,7 +62,8 @@ namespace {
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
     "grain_density, critical_packing, wall, container, cfl, pic, support, points_per_cell, inertia, output, "
-    "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, grain_type, seed";
+    "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
+    "seed";
 
 // Thermo vector entries (docs/fix_hybrid_mpm.md)
 enum {
@@ -129,6 +130,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     int used = 2;
     if (key == "cell") cell = positive(key, val, "the MPM grid cell size");
     else if (key == "continuum") region_ids.push_back(val);
+    else if (key == "discrete") discrete_region_ids.push_back(val);
     else if (key == "hybrid_width") hybrid_width = integer(key, val);
     else if (key == "weight") {
       c.grain_weight = number(key, val);
@@ -222,6 +224,12 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   for (const auto &rid : region_ids)
     if (domain->find_region(rid) < 0)
       illegal(fmt::format("continuum region '{}' does not exist (define it with the region command first)", rid));
+  for (const auto &rid : discrete_region_ids)
+    if (domain->find_region(rid) < 0)
+      illegal(fmt::format("discrete region '{}' does not exist (define it with the region command first)", rid));
+  if (!discrete_region_ids.empty() && adapt_every <= 0)
+    illegal("keyword 'discrete' needs adaptive zones (keyword 'adaptive'): with fixed zones, leave the region "
+            "out of the continuum regions instead");
   if (inertia < 0.0) inertia = domain->dimension == 2 ? 0.5 : 0.4;
   if (adapt_every > 0 && adapt_every % every != 0)
     illegal(fmt::format("keyword 'adaptive' ({} steps) must be a multiple of 'every' ({}): zones change right "
@@ -319,6 +327,9 @@ void FixHybridMPM::init()
     for (const auto &rid : region_ids)
       if (domain->find_region(rid) < 0)
         error->all(FLERR, fmt::format("Fix hybrid/mpm: continuum region '{}' no longer exists", rid));
+    for (const auto &rid : discrete_region_ids)
+      if (domain->find_region(rid) < 0)
+        error->all(FLERR, fmt::format("Fix hybrid/mpm: discrete region '{}' no longer exists", rid));
   }
   if (update->whichflag == 1 && strcmp(update->integrate_style, "verlet") != 0)
     error->all(FLERR, "Fix hybrid/mpm needs run_style verlet");
@@ -520,6 +531,33 @@ void FixHybridMPM::compute_zones()
                                     n[0] + n[1] + n[2], n[coupler::kContinuum], n[coupler::kHybrid],
                                     n[coupler::kDiscrete]));
   }
+}
+
+/* ----------------------------------------------------------------------
+   grid cells whose centre lies in a discrete region (evaluated now: regions
+   may move); the oracle takes them as boundaries of the material
+------------------------------------------------------------------------- */
+
+std::vector<std::uint64_t> FixHybridMPM::discrete_cells()
+{
+  std::vector<std::uint64_t> cells;
+  if (discrete_region_ids.empty()) return cells;
+  std::vector<Region *> regions;
+  for (const auto &rid : discrete_region_ids) {
+    Region *r = domain->regions[domain->find_region(rid)];
+    r->prematch();
+    regions.push_back(r);
+  }
+  double centre[3] = {0.0, 0.0, 0.0};
+  for (std::size_t c = 0; c < zones.size(); ++c) {
+    cell_centre(c, centre);
+    for (Region *r : regions)
+      if (r->match(centre[0], centre[1], centre[2])) {
+        cells.push_back(c);
+        break;
+      }
+  }
+  return cells;
 }
 
 void FixHybridMPM::cell_centre(std::size_t c, double *centre) const
@@ -951,7 +989,10 @@ void FixHybridMPM::rezone(int source)
       h.zone_source = source;
       link->send_struct(0, coupler::kTagStep, h, "the rezone header" + at);
       if (source == coupler::kZonesGiven) link->send_array(0, coupler::kTagZones, zones, "the zone map" + at);
-      else link->send_struct(0, coupler::kTagOracle, *oracle, "the oracle settings" + at);
+      else {
+        link->send_struct(0, coupler::kTagOracle, *oracle, "the oracle settings" + at);
+        link->send_array(0, coupler::kTagDiscreteCells, discrete_cells(), "the cells of the discrete regions" + at);
+      }
     }
     link->send_array(0, coupler::kTagVolumes, volumes, "the grain volumes" + at);
     const coupler::Message m = link->receive(0, {coupler::kTagZones, coupler::kTagStepAck}, "the new zone map" + at);

@@ -85,6 +85,7 @@ class FixHybridMPM : public Fix {
   int template_seed;      // seed of the packing template new grains are cut from
   double inertia;         // moment of inertia factor of a grain (I = inertia m r^2)
   std::vector<std::string> region_ids;     // continuum regions
+  std::vector<std::string> discrete_region_ids;    // regions kept discrete (oracle boundaries)
   std::string output_path;                 // HDF5 file of grains and points ("" = none)
   std::unique_ptr<coupler::ContinuumSettings> settings;
   std::unique_ptr<coupler::OracleSettings> oracle;    // zone oracle of adaptive runs
@@ -155,6 +156,7 @@ class FixHybridMPM : public Fix {
   double dem_time(bigint step) const;
   double next_exchange_time(bool force_output) const;
   void cell_centre(std::size_t c, double *centre) const;
+  std::vector<std::uint64_t> discrete_cells();
   void grain_defaults();
   void fill_thermo_vector();
   void grain_totals(double *all) const;

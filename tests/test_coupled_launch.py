@@ -114,6 +114,8 @@ def test_launcher_composes_both_routes(tmp_path, hybrid_programs, hybrid_plugin)
     ("cell 0.01 timeout", "keyword 'timeout' needs a value"),
     ("cell 0.01 every 0", "keyword 'every' needs a positive integer"),
     ("cell 0.01 continuum nowhere", "continuum region 'nowhere' does not exist"),
+    ("cell 0.01 adaptive 10 discrete nowhere", "discrete region 'nowhere' does not exist"),
+    ("cell 0.01 discrete bed", "keyword 'discrete' needs adaptive zones (keyword 'adaptive')"),
     ("cell 0.01 weight 1.5", "keyword 'weight' (the share of a hybrid cell's mass its grains keep) must be between "
                              "0 and 1, not 1.5"),
     ("cell 0.01 wall friction", "keyword 'wall friction' needs the friction coefficient"),

@@ -190,6 +190,7 @@ const char* tag_name(int tag) {
     case kTagCorrections: return "GrainCorrections";
     case kTagOracle: return "OracleSettings";
     case kTagSupport: return "SupportForce";
+    case kTagDiscreteCells: return "DiscreteCells";
     case kTagNodes: return "NodeRecords";
     case kTagNodeReply: return "NodeUpdates";
     case kTagGrains: return "GrainRecords";

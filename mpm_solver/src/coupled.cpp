@@ -132,8 +132,12 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   coupler::OracleSettings oracle;
   if (h.zone_source == coupler::kZonesGiven)
     given = link.receive(0, {coupler::kTagZones}, "the zone map" + at).as_array<std::int8_t>();
-  else
+  std::vector<std::uint64_t> discrete_cells;
+  if (h.zone_source != coupler::kZonesGiven) {
     oracle = link.receive(0, {coupler::kTagOracle}, "the oracle settings" + at).as<coupler::OracleSettings>();
+    discrete_cells = link.receive(0, {coupler::kTagDiscreteCells}, "the cells of the discrete regions" + at)
+                         .as_array<std::uint64_t>();
+  }
   const auto volumes =
       receive_from_all<coupler::CellGrains>(link, coupler::kTagVolumes, "the grain volumes" + at);
   auto fail = [&](const std::string& what) {
@@ -145,7 +149,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   std::vector<coupler::RezoneCell<D>> cells;
   try {
     if (!deferred_error.empty()) throw UserError(deferred_error);
-    cells = continuum->plan_rezone(h.time, h.zone_source, given, oracle, volumes);
+    cells = continuum->plan_rezone(h.time, h.zone_source, given, oracle, discrete_cells, volumes);
   } catch (const UserError& e) {
     return fail(std::string("the rezone failed") + at + ": " + e.what());
   }

@@ -107,7 +107,7 @@ double CoupledContinuum<D>::grain_share(int zone) const {
 template <int D>
 std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     double time, int zone_source, const std::vector<std::int8_t>& given, const coupler::OracleSettings& os,
-    const std::vector<std::vector<coupler::CellGrains>>& volumes) {
+    const std::vector<std::uint64_t>& discrete_cells, const std::vector<std::vector<coupler::CellGrains>>& volumes) {
   if (step_open()) throw UserError("internal: a rezone while a substep is open");
   const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(solver_.grid());
   const coupler::ContinuumSettings& cs = hello_.continuum;
@@ -144,8 +144,13 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
       for (std::size_t p = 0; p < pts.size(); ++p)
         shear[point_cell[p]] = std::max(shear[point_cell[p]], coupler::shear_rate<D>(pts.C[p]));
     }
-    const auto walls = coupler::cells_outside_box<D>(geometry, Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
-                                                     Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>());
+    auto walls = coupler::cells_outside_box<D>(geometry, Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
+                                               Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>());
+    // the fix's discrete regions (an orifice, an intruder) are boundaries of the material too
+    for (std::uint64_t c : discrete_cells) {
+      if (c >= n) throw UserError("a discrete region's cell " + std::to_string(c) + " is outside the grid");
+      walls[c] = 1;
+    }
     const auto packing = coupler::packing_fraction<D>(geometry, volume, has_points);
     std::vector<std::uint8_t> material(n);
     for (std::size_t c = 0; c < n; ++c) material[c] = packing[c] >= os.surface_packing;

@@ -71,6 +71,7 @@ enum Tag : int {
   kTagCorrections = 7322, ///< MPM -> every DEM rank, GrainCorrection<D>[] for the cells holding grains
   kTagOracle = 7323,      ///< DEM leader -> MPM, OracleSettings of a rezone by the oracle
   kTagSupport = 7324,     ///< DEM leader -> MPM, 3 doubles: the grains' support force after a rezone
+  kTagDiscreteCells = 7325, ///< DEM leader -> MPM, uint64 cell indices in the fix's discrete regions
   kTagFinish = 7320,      ///< DEM -> MPM, Finish: the coupled run is over, MPM exits 0
   kTagAbort = 7330,       ///< DEM -> MPM, AbortNote: DEM stopped on an error, MPM exits 1
 };
@@ -157,7 +158,8 @@ enum ZoneSource : std::int32_t {
 
 // A rezone (kStepRezone), all messages in this order:
 //   DEM leader -> MPM   StepHeader; the zone map if zone_source == kZonesGiven, else the
-//                       OracleSettings (the fix line's, changeable between runs)
+//                       OracleSettings (the fix line's, changeable between runs) and the
+//                       cells in the fix's discrete regions (boundaries for the oracle)
 //   every DEM rank      CellGrains[] (its grains' volume and mass per cell)
 //   MPM -> every rank   the new zone map; RezoneCell<D>[] (cells whose material moves)
 //   every DEM rank      BodySums<D>[] of its grains in those cells; where

@@ -25,9 +25,11 @@ class CoupledContinuum {
   /// First half of a rezone (coupler/protocol.hpp): the new zones - `given` (zone_source
   /// kZonesGiven) or the oracle's, from the grains' sums per cell of every DEM rank and the
   /// points - and the cells whose material moves, with what new grains there must carry.
-  /// `oracle`: its settings (not used with given zones). `time`: the DEM time (the start of the continuum's clock at the first rezone).
+  /// `oracle`: its settings and `discrete_cells` the cells it takes as boundaries (the fix's
+  /// discrete regions), both not used with given zones. `time`: the DEM time (the start of the continuum's clock at the first rezone).
   std::vector<coupler::RezoneCell<D>> plan_rezone(double time, int zone_source, const std::vector<std::int8_t>& given,
                                                   const coupler::OracleSettings& oracle,
+                                                  const std::vector<std::uint64_t>& discrete_cells,
                                                   const std::vector<std::vector<coupler::CellGrains>>& grains);
   /// Second half: with every DEM rank's grain sums in those cells and the share the grains
   /// took where new grains were made (one per planned cell, -1 elsewhere), moves the points' share (correct, remove or make
