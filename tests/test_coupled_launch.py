@@ -20,6 +20,9 @@ import pytest
 from conftest import BUILD, REPO
 
 DECK = REPO / "input_decks" / "hybrid" / "handshake.lmp"
+# the wire protocol version both sides were built with (coupler/include/coupler/version.hpp)
+PROTOCOL = int(re.search(r"kProtocolVersion = (\d+);",
+                         (REPO / "coupler" / "include" / "coupler" / "version.hpp").read_text()).group(1))
 LAUNCH = REPO / "tools" / "hybrid_launch.py"
 MPIRUN = REPO / "tools" / "mpirun.sh"
 # Generous bound for a failure to stop the whole job (the goal is "within seconds").
@@ -72,7 +75,7 @@ def test_lmp_hybrid_handshake_steps_and_clean_finish(tmp_path, hybrid_programs, 
     assert "coupled run finished at LAMMPS step 200 after 20 exchange(s)" in text
     lammps_log = log.read_text()
     assert "fix hybrid/mpm: handshake ok with the MPM process (1 rank(s)): mpm_solver" in lammps_log
-    assert "protocol 3" in lammps_log and "cell 0.01, model drucker_prager" in lammps_log
+    assert f"protocol {PROTOCOL}" in lammps_log and "cell 0.01, model drucker_prager" in lammps_log
     assert "fix hybrid/mpm: finished the coupled run after 20 exchange(s)" in lammps_log
     # f_couple (thermo column) counts the exchanges
     last = [ln.split() for ln in lammps_log.splitlines() if re.match(r"^\s+200\s+630\s", ln)]
@@ -176,7 +179,7 @@ def test_version_mismatch_is_an_error_on_both_sides_naming_both_versions(tmp_pat
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=60, env=env())
     text = output(proc)
     assert proc.returncode != 0, text
-    both = "fix hybrid/mpm is release 0.1.0 (protocol 3), mpm_solver is release 9.9.9 (protocol 3)"
+    both = f"fix hybrid/mpm is release 0.1.0 (protocol {PROTOCOL}), mpm_solver is release 9.9.9 (protocol {PROTOCOL})"
     assert f"mpm_solver: error: version mismatch: {both}" in text, text
     assert f"ERROR: Fix hybrid/mpm: the MPM process refused the connection: version mismatch: {both}" in text
 
