@@ -82,6 +82,18 @@ coupler::GridGeometry<D> box_grid(const Domain *domain, double cell)
                                  cell);
 }
 
+/// The slot `slots` gives the grid cell holding position x; -1 off the grid or for a cell it
+/// does not list.
+template <int D>
+std::int64_t slot_of_cell_at(const coupler::GridGeometry<D> &grid, const double *x,
+                             const std::map<std::uint64_t, std::size_t> &slots)
+{
+  const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(x));
+  if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return -1;
+  const auto it = slots.find(coupler::cell_index<D>(grid, c));
+  return it == slots.end() ? -1 : static_cast<std::int64_t>(it->second);
+}
+
 }    // namespace
 
 /* ---------------------------------------------------------------------- */
@@ -221,12 +233,10 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     iarg += used;
   }
   if (cell <= 0.0) illegal("keyword 'cell' (the MPM grid cell size) is required");
-  for (const auto &rid : region_ids)
-    if (domain->find_region(rid) < 0)
-      illegal(fmt::format("continuum region '{}' does not exist (define it with the region command first)", rid));
-  for (const auto &rid : discrete_region_ids)
-    if (domain->find_region(rid) < 0)
-      illegal(fmt::format("discrete region '{}' does not exist (define it with the region command first)", rid));
+  for (const auto &[kind, ids] : named_regions())
+    for (const auto &rid : *ids)
+      if (domain->find_region(rid) < 0)
+        illegal(fmt::format("{} region '{}' does not exist (define it with the region command first)", kind, rid));
   if (!discrete_region_ids.empty() && adapt_every <= 0)
     illegal("keyword 'discrete' needs adaptive zones (keyword 'adaptive'): with fixed zones, leave the region "
             "out of the continuum regions instead");
@@ -324,12 +334,10 @@ void FixHybridMPM::init()
                                       "x, y{}: the continuum's grid covers the box and has walls at its faces "
                                       "(use boundary f f {})",
                                       domain->dimension == 3 ? ", z" : "", domain->dimension == 3 ? "f" : "p"));
-    for (const auto &rid : region_ids)
-      if (domain->find_region(rid) < 0)
-        error->all(FLERR, fmt::format("Fix hybrid/mpm: continuum region '{}' no longer exists", rid));
-    for (const auto &rid : discrete_region_ids)
-      if (domain->find_region(rid) < 0)
-        error->all(FLERR, fmt::format("Fix hybrid/mpm: discrete region '{}' no longer exists", rid));
+    for (const auto &[kind, ids] : named_regions())
+      for (const auto &rid : *ids)
+        if (domain->find_region(rid) < 0)
+          error->all(FLERR, fmt::format("Fix hybrid/mpm: {} region '{}' no longer exists", kind, rid));
   }
   if (update->whichflag == 1 && strcmp(update->integrate_style, "verlet") != 0)
     error->all(FLERR, "Fix hybrid/mpm needs run_style verlet");
@@ -492,18 +500,8 @@ void FixHybridMPM::connect()
 
 void FixHybridMPM::compute_zones()
 {
-  std::vector<Region *> regions;
-  for (const auto &rid : region_ids) {
-    Region *r = domain->regions[domain->find_region(rid)];
-    r->prematch();
-    regions.push_back(r);
-  }
-  auto inside = [&](const auto &x) {
-    const double z = x.size() == 3 ? x[2] : 0.0;
-    for (Region *r : regions)
-      if (r->match(x[0], x[1], z)) return true;
-    return false;
-  };
+  const std::vector<Region *> regions = prematched(region_ids);
+  auto inside = [&](const auto &x) { return in_any(regions, x[0], x[1], x.size() == 3 ? x[2] : 0.0); };
   if (domain->dimension == 2) {
     const auto grid = box_grid<2>(domain, cell);
     zones = coupler::zones_from_regions<2>(grid, Eigen::Map<const Vec<2>>(domain->boxlo),
@@ -542,22 +540,41 @@ std::vector<std::uint64_t> FixHybridMPM::discrete_cells()
 {
   std::vector<std::uint64_t> cells;
   if (discrete_region_ids.empty()) return cells;
+  const std::vector<Region *> regions = prematched(discrete_region_ids);
+  double centre[3] = {0.0, 0.0, 0.0};
+  for (std::size_t c = 0; c < zones.size(); ++c) {
+    cell_centre(c, centre);
+    if (in_any(regions, centre[0], centre[1], centre[2])) cells.push_back(c);
+  }
+  return cells;
+}
+
+/* ----------------------------------------------------------------------
+   the fix's named regions by kind (for the checks that they exist), and
+   regions ready to match at this step (they may move)
+------------------------------------------------------------------------- */
+
+std::array<std::pair<const char *, const std::vector<std::string> *>, 2> FixHybridMPM::named_regions() const
+{
+  return {{{"continuum", &region_ids}, {"discrete", &discrete_region_ids}}};
+}
+
+std::vector<Region *> FixHybridMPM::prematched(const std::vector<std::string> &ids) const
+{
   std::vector<Region *> regions;
-  for (const auto &rid : discrete_region_ids) {
+  for (const auto &rid : ids) {
     Region *r = domain->regions[domain->find_region(rid)];
     r->prematch();
     regions.push_back(r);
   }
-  double centre[3] = {0.0, 0.0, 0.0};
-  for (std::size_t c = 0; c < zones.size(); ++c) {
-    cell_centre(c, centre);
-    for (Region *r : regions)
-      if (r->match(centre[0], centre[1], centre[2])) {
-        cells.push_back(c);
-        break;
-      }
-  }
-  return cells;
+  return regions;
+}
+
+bool FixHybridMPM::in_any(const std::vector<Region *> &regions, double x, double y, double z)
+{
+  for (Region *r : regions)
+    if (r->match(x, y, z)) return true;
+  return false;
 }
 
 void FixHybridMPM::cell_centre(std::size_t c, double *centre) const
@@ -776,12 +793,7 @@ std::vector<double> FixHybridMPM::make_grains(const std::vector<coupler::RezoneC
     if (cells[k].make_grains) making_slot.emplace(cells[k].cell, making.size()), making.push_back(k);
   if (making.empty()) return made_in_cell;
   const double density = settings->grain_density;
-  auto slot_of_atom = [&](int i) -> std::int64_t {
-    const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(atom->x[i]));
-    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return -1;
-    const auto it = making_slot.find(coupler::cell_index<D>(grid, c));
-    return it == making_slot.end() ? -1 : static_cast<std::int64_t>(it->second);
-  };
+  auto slot_of_atom = [&](int i) { return slot_of_cell_at<D>(grid, atom->x[i], making_slot); };
 
   // the old grains of these cells, over all ranks: what they carry, and their sums at the
   // solid density (as members of the new body set)
@@ -1015,12 +1027,7 @@ void FixHybridMPM::rezone(int source)
   // 2. the sums of the grains in the moving cells, before anything changes
   std::map<std::uint64_t, std::size_t> slot;
   for (std::size_t k = 0; k < cells.size(); ++k) slot.emplace(cells[k].cell, k);
-  auto cell_of_atom = [&](int i) -> std::int64_t {
-    const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(atom->x[i]));
-    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return -1;
-    const auto it = slot.find(coupler::cell_index<D>(grid, c));
-    return it == slot.end() ? -1 : static_cast<std::int64_t>(it->second);
-  };
+  auto cell_of_atom = [&](int i) { return slot_of_cell_at<D>(grid, atom->x[i], slot); };
   const int nlocal_old = atom->nlocal;
   std::map<std::size_t, coupler::BodySums<D>> sums;
   {

@@ -15,9 +15,11 @@ FixStyle(hybrid/mpm,FixHybridMPM);
 
 #include "fix.h"
 
+#include <array>
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace coupler {
@@ -38,6 +40,7 @@ struct OracleSettings;
 }
 
 namespace LAMMPS_NS {
+class Region;
 
 class FixHybridMPM : public Fix {
  public:
@@ -157,6 +160,9 @@ class FixHybridMPM : public Fix {
   double next_exchange_time(bool force_output) const;
   void cell_centre(std::size_t c, double *centre) const;
   std::vector<std::uint64_t> discrete_cells();
+  std::array<std::pair<const char *, const std::vector<std::string> *>, 2> named_regions() const;
+  std::vector<Region *> prematched(const std::vector<std::string> &ids) const;
+  static bool in_any(const std::vector<Region *> &regions, double x, double y, double z);
   void grain_defaults();
   void fill_thermo_vector();
   void grain_totals(double *all) const;

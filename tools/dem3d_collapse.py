@@ -18,7 +18,6 @@ dem_collapse.surface_profile (max y + r per x bin of 2 d) over the connected dep
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import re
 import shutil
@@ -32,7 +31,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from column_collapse import published_runout_range  # noqa: E402
-from dem_collapse import connected_deposit, max_overlap, read_dump, surface_profile  # noqa: E402
+from dem_collapse import (connected_deposit, deck_vars, max_overlap, print_result, read_dump,  # noqa: E402
+                          surface_profile)
 
 REPO = Path(__file__).resolve().parent.parent
 DECKS = {
@@ -246,13 +246,8 @@ def main(argv=None) -> int:
     p.add_argument("--var", action="append", default=[], metavar="NAME=VALUE")
     p.add_argument("--json", action="store_true")
     a = p.parse_args(argv)
-    res = run(a.code, a.aspect, a.width, a.d, a.thickness, a.np_, a.out, a.seed,
-              extra_vars=dict(v.split("=", 1) for v in a.var))
-    if a.json:
-        print(json.dumps(res.__dict__, indent=1, default=str))
-    else:
-        print(res.log)
-        print(res.summary())
+    res = run(a.code, a.aspect, a.width, a.d, a.thickness, a.np_, a.out, a.seed, extra_vars=deck_vars(p, a.var))
+    print_result(res, a.json)
     return 0
 
 

@@ -304,26 +304,48 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
                      published=published_runout_range(aspect), log="\n".join(lines), **res)
 
 
+def add_run_arguments(parser: argparse.ArgumentParser, settled: str) -> None:
+    """The options every 2D scene driver has: ranks, output, seed and the settled-state cache."""
+    parser.add_argument("--np", type=int, default=1, dest="np_", help="MPI ranks (tools/mpirun.sh)")
+    parser.add_argument("--out", default=None, help="output directory")
+    parser.add_argument("--seed", type=int, default=12345)
+    parser.add_argument("--no-cache", action="store_true", help=f"rebuild the settled {settled}")
+
+
+def deck_vars(parser: argparse.ArgumentParser, items: list, option: str = "--var") -> dict:
+    """The NAME=VALUE items of a repeatable command-line option as deck variables; a malformed
+    item is a usage error naming it (the scene drivers share this)."""
+    variables = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            parser.error(f"{option} {item!r}: expected NAME=VALUE")
+        variables[name] = value
+    return variables
+
+
+def print_result(res, as_json: bool, **derived) -> None:
+    """A scene driver's result: its fields (and derived figures) as JSON, or its LAMMPS log
+    excerpt and summary."""
+    if as_json:
+        print(json.dumps(dict(res.__dict__, **derived), indent=1, default=str))
+    else:
+        print(res.log)
+        print(res.summary())
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--aspect", type=float, default=2.0, help="H0/L0")
     p.add_argument("--width", type=float, default=0.1, help="L0, m")
     p.add_argument("--d", type=float, default=0.002, help="mean grain diameter, m")
-    p.add_argument("--np", type=int, default=1, dest="np_", help="MPI ranks (tools/mpirun.sh)")
-    p.add_argument("--out", default=None, help="output directory")
-    p.add_argument("--seed", type=int, default=12345)
-    p.add_argument("--no-cache", action="store_true", help="rebuild the settled column")
+    add_run_arguments(p, "column")
     p.add_argument("--var", action="append", default=[], metavar="NAME=VALUE",
                    help="extra deck variable (mu, e, knfac, dtdiv, ketol, rho, ...)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     a = p.parse_args(argv)
-    extra = dict(v.split("=", 1) for v in a.var)
-    res = run(a.aspect, a.width, a.d, a.np_, a.out, a.seed, not a.no_cache, extra_vars=extra)
-    if a.json:
-        print(json.dumps({k: v for k, v in res.__dict__.items()}, indent=1))
-    else:
-        print(res.log)
-        print(res.summary())
+    res = run(a.aspect, a.width, a.d, a.np_, a.out, a.seed, not a.no_cache, extra_vars=deck_vars(p, a.var))
+    print_result(res, a.json)
     return 0
 
 

@@ -63,7 +63,8 @@ REPO = Path(__file__).resolve().parent.parent
 DECK = REPO / "input_decks" / "silo" / "dem_2d.lmp"
 HYBRID_DECK = REPO / "input_decks" / "silo" / "hybrid_2d.lmp"
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from dem_collapse import max_overlap, read_dump, run_lammps  # noqa: E402
+from dem_collapse import (add_run_arguments, deck_vars, max_overlap, print_result, read_dump,  # noqa: E402
+                          run_lammps)
 
 G = 9.81
 BEVERLOO_C2D = math.pi / 4   # free-fall arch with Janda et al. 2012's outlet profiles (see above)
@@ -324,10 +325,7 @@ def main(argv=None) -> int:
     p.add_argument("--d", type=float, default=0.002, help="mean grain diameter, m")
     p.add_argument("--tdis", type=float, default=1.0, help="discharge time after the opening, s")
     p.add_argument("--fstop", type=float, default=0.9, help="or stop once this mass fraction has left")
-    p.add_argument("--np", type=int, default=1, dest="np_", help="MPI ranks (tools/mpirun.sh)")
-    p.add_argument("--out", default=None, help="output directory")
-    p.add_argument("--seed", type=int, default=12345)
-    p.add_argument("--no-cache", action="store_true", help="rebuild the settled silo")
+    add_run_arguments(p, "silo")
     p.add_argument("--cache-dir", default=None, help="cache directory (default $HYBRID_CACHE)")
     p.add_argument("--var", action="append", default=[], metavar="NAME=VALUE",
                    help="extra deck variable (mu, e, knfac, dtdiv, ketol, rho, tout, ...)")
@@ -337,15 +335,11 @@ def main(argv=None) -> int:
                    help="variable of the hybrid twin (hcell, hevery, hadapt, hdepth, hband, hyoungs, hphi)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     a = p.parse_args(argv)
-    extra = dict(v.split("=", 1) for v in a.var)
-    hybrid = dict(v.split("=", 1) for v in a.hvar) if a.hybrid or a.hvar else None
+    extra = deck_vars(p, a.var)
+    hybrid = deck_vars(p, a.hvar, "--hvar") if a.hybrid or a.hvar else None
     res = run_dem_silo(a.width, a.height, a.orifice, a.d, a.np_, a.out, a.seed, not a.no_cache,
                        a.cache_dir, a.tdis, a.fstop, extra_vars=extra, hybrid_vars=hybrid)
-    if a.json:
-        print(json.dumps(dict(res.__dict__, ratio=res.ratio, halves_spread=res.halves_spread), indent=1))
-    else:
-        print(res.log)
-        print(res.summary())
+    print_result(res, a.json, ratio=res.ratio, halves_spread=res.halves_spread)
     return 0
 
 

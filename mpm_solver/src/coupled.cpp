@@ -130,10 +130,10 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   const std::string at = " of the rezone at step " + std::to_string(h.step);
   std::vector<std::int8_t> given;
   coupler::OracleSettings oracle;
+  std::vector<std::uint64_t> discrete_cells;
   if (h.zone_source == coupler::kZonesGiven)
     given = link.receive(0, {coupler::kTagZones}, "the zone map" + at).as_array<std::int8_t>();
-  std::vector<std::uint64_t> discrete_cells;
-  if (h.zone_source != coupler::kZonesGiven) {
+  else {
     oracle = link.receive(0, {coupler::kTagOracle}, "the oracle settings" + at).as<coupler::OracleSettings>();
     discrete_cells = link.receive(0, {coupler::kTagDiscreteCells}, "the cells of the discrete regions" + at)
                          .as_array<std::uint64_t>();
