@@ -23,17 +23,22 @@
 #include "compute.h"
 #include "domain.h"
 #include "error.h"
+#include "force.h"
 #include "group.h"
 #include "math_const.h"
 #include "memory.h"
 #include "modify.h"
 #include "output.h"
+#include "pair.h"
 #include "region.h"
 #include "update.h"
 #include "utils.h"
 #include "version.h"
 
+#include "GRANULAR/pair_gran_hooke_history.h"
+
 #include "coupler/conversion.hpp"
+#include "coupler/dem_timestep.hpp"
 #include "coupler/enrichment.hpp"
 #include "coupler/oracle.hpp"
 #include "coupler/protocol.hpp"
@@ -58,6 +63,21 @@ static constexpr double BIG = 1.0e20;
 static constexpr double kSmallestShrink = 0.8;
 
 namespace {
+
+// The contact constants of LAMMPS's Hookean granular pair styles are protected members; a type
+// derived from the pair may name them (it is never instantiated, so nothing of the pair's code
+// is linked: the plugin loads into a LAMMPS whatever its packages).
+struct HookeanConstants : PairGranHookeHistory {
+  static coupler::HookeanContact of(const Pair *pair)
+  {
+    const auto *p = static_cast<const PairGranHookeHistory *>(pair);
+    coupler::HookeanContact c;
+    c.kn = p->*(&HookeanConstants::kn);
+    c.kt = p->*(&HookeanConstants::kt);
+    c.gamman = p->*(&HookeanConstants::gamman);
+    return c;
+  }
+};
 
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
@@ -112,7 +132,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     settings(new coupler::ContinuumSettings), oracle(new coupler::OracleSettings), diameter_given(false), density_given(false), exchanges(0),
     restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
     converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle), new_grain_mask(1),
-    polydispersity(0.0), restored(false), state_loaded(false), clock_time(0.0),
+    polydispersity(0.0), timestep_checked(false), fewest_steps_warned(BIG), restored(false), state_loaded(false), clock_time(0.0),
     clock_step(-1), clock_dt(0.0),
     stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1)
 {
@@ -341,6 +361,63 @@ void FixHybridMPM::init()
   }
   if (update->whichflag == 1 && strcmp(update->integrate_style, "verlet") != 0)
     error->all(FLERR, "Fix hybrid/mpm needs run_style verlet");
+  fewest_steps_warned = BIG;
+  std::string why;
+  const double steps = dem_steps_per_contact(why);
+  if (steps < coupler::kFewestStepsPerContact)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s is too long (checked before the run): {}",
+                                  update->dt, why));
+}
+
+/* ----------------------------------------------------------------------
+   the DEM side's stability (DESIGN.md section 3): steps per contact of the
+   stiffest pair, the two lightest grains (infinite for pair styles it cannot
+   check); `why` explains it and names the safe step. Grains in hybrid cells
+   carry only their share `weight` of their mass and vibrate faster, so while
+   the coupling may split grains the lightest grain counts at that share.
+   Logs the figure at the first check.
+------------------------------------------------------------------------- */
+
+double FixHybridMPM::dem_steps_per_contact(std::string &why)
+{
+  Pair *pair = force->pair_match("^gran/hooke", 0);
+  if (!pair) {
+    if (force->pair && !timestep_checked && comm->me == 0)
+      error->warning(FLERR, fmt::format("Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and "
+                                        "gran/hooke/history only; check it yourself for pair style {} "
+                                        "(at least {:g} steps per contact)", force->pair_style,
+                                        coupler::kSafeStepsPerContact));
+    timestep_checked = true;
+    return BIG;
+  }
+  const bool splits = !region_ids.empty() || adapt_every > 0;
+  double local = BIG, lightest = BIG;
+  for (int i = 0; i < atom->nlocal; i++) {
+    local = std::min(local, atom->rmass[i]);
+    if (splits && (atom->mask[i] & groupbit))
+      local = std::min(local, atom->rmass[i] / weight[i] * settings->grain_weight);
+  }
+  MPI_Allreduce(&local, &lightest, 1, MPI_DOUBLE, MPI_MIN, world);
+  if (lightest >= BIG) return BIG;
+
+  coupler::HookeanContact contact = HookeanConstants::of(pair);
+  contact.m_eff = 0.5 * lightest;
+  contact.inertia = inertia;
+  const double tc = coupler::contact_time(contact), steps = tc / update->dt;
+  const std::string what =
+      fmt::format("the stiffest contact (pair style {}: kn = {:.6g} N/m, kt = {:.6g} N/m, gamma_n = {:.6g} 1/s; "
+                  "lightest grains {:.6g} kg{}) lasts tc = {:.6g} s",
+                  force->pair_style, contact.kn, contact.kt, contact.gamman, lightest,
+                  splits ? ", at their share in hybrid cells" : "", tc);
+  if (!timestep_checked && comm->me == 0)
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: DEM time step {:.6g} s: {}, {:.3g} steps per contact\n",
+                                    update->dt, what, steps));
+  timestep_checked = true;
+  why = fmt::format("{}, and {:.3g} steps per contact (fewer than {:g}) do not resolve it: the run loses its energy "
+                    "balance and goes unstable. Use timestep {:.6g} (tc/{:g}) or less",
+                    what, steps, coupler::kFewestStepsPerContact, tc / coupler::kSafeStepsPerContact,
+                    coupler::kSafeStepsPerContact);
+  return steps;
 }
 
 /* ---------------------------------------------------------------------- */
@@ -1167,6 +1244,17 @@ void FixHybridMPM::rezone(int source)
     for (int k = 0; k < 7; k++)
       line += fmt::format(" {:.17g} {:.17g}", grains_before[k] + ack.before[k], grains_after[k] + after[k]);
     utils::logmesg(lmp, line + "\n");
+  }
+  // made and rescaled grains may be lighter than any before, and their contacts faster: the
+  // user is warned while the contacts are still resolved, the run stops before they are not
+  std::string why;
+  const double steps = dem_steps_per_contact(why);
+  const std::string when = fmt::format("the time step {:.6g} s is too long after the rezone at step {}: ",
+                                       update->dt, update->ntimestep);
+  if (steps < coupler::kUnstableStepsPerContact) fail(FLERR, 0, (when + why).c_str());
+  if (steps < coupler::kFewestStepsPerContact && steps < 0.9 * fewest_steps_warned) {
+    fewest_steps_warned = steps;
+    if (comm->me == 0) error->warning(FLERR, "Fix hybrid/mpm: " + when + why);
   }
 }
 

@@ -115,6 +115,8 @@ class FixHybridMPM : public Fix {
   double polydispersity;                  // of the group's diameters, for the packing template
   std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
   std::unique_ptr<coupler::PackingTemplate<3>> template3;
+  bool timestep_checked;                  // the DEM time step was checked (and logged) once
+  double fewest_steps_warned;             // steps per contact of the last warning this run
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
   std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)
@@ -141,6 +143,7 @@ class FixHybridMPM : public Fix {
   void schedule_rezone(int source);
   bool set_oracle_keyword(const std::string &key, const std::string &val);
   void check_oracle();
+  double dem_steps_per_contact(std::string &why);
   void store_atom_stress();
   template <int D> void exchange(bool force_output);
   template <int D> coupler::GrainTransfer<D> &transfer();
@@ -203,6 +206,20 @@ E: Fix hybrid/mpm: no reply from the MPM process within N s ...
 
 The MPM process hung or crashed. The job is aborted, because MPI_Finalize
 would wait for it forever.
+
+E: Fix hybrid/mpm: the time step ... is too long (checked before the run) ...
+
+Fewer than 10 DEM steps per contact of the stiffest pair (the lightest grains, at their
+share in hybrid cells). Use the timestep the message names (tc/20).
+
+W: Fix hybrid/mpm: the time step ... is too long after the rezone at step ...
+
+Grains made or rescaled by a rezone are lighter than any before: fewer than 10 steps per
+contact. Below 5 this is an error and the run stops. Use the timestep the message names.
+
+W: Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and gran/hooke/history only ...
+
+Other pair styles: check the step yourself.
 
 E: Fix hybrid/mpm: version mismatch ...
 

@@ -6,6 +6,7 @@ copied into the test's tmp_path so that its processes can be told apart from any
 """
 from __future__ import annotations
 
+import math
 import os
 import re
 import signal
@@ -131,6 +132,37 @@ def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_prog
     assert proc.returncode != 0, text
     assert "ERROR: Illegal fix hybrid/mpm command: " + message in text, text
     # the MPM process is told at once instead of waiting for its handshake timeout
+    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+@pytest.mark.parametrize("timestep, fix_args, share", [
+    ("5.0e-5", "cell 0.01", 1.0),
+    # grains in hybrid cells keep 10 % of their mass: the deck's own step (22.7 steps per
+    # contact of whole grains) is too long for them
+    ("1.0e-5", "cell 0.01 continuum lower weight 0.1", 0.1),
+])
+def test_too_long_dem_time_step_is_refused_naming_the_safe_step(tmp_path, hybrid_programs, timestep, fix_args, share):
+    """The deck's contact (kn = 1000 N/m, gamma_n = 500 1/s, 2 mm grains of 2500 kg/m^3): the
+    safe step is tc/20 of the lightest pair, tc = pi / sqrt(kn/m_eff - gamma_n^2/4) (DESIGN.md
+    section 3), computed here independently of the fix."""
+    m_eff = 0.5 * share * 2500 * 4 / 3 * math.pi * 0.001 ** 3
+    safe = math.pi / math.sqrt(1000 / m_eff - 0.25 * 500 ** 2) / 20
+
+    def edit(text):
+        text = re.sub(r"^timestep\s.*$", f"timestep {timestep}", text, flags=re.M)
+        text = text.replace("boundary        p f p", "boundary        f f p")
+        text = text.replace("fix             2d all", "region lower block INF INF INF 0.02 INF INF units box\n"
+                                                     "fix             2d all")
+        return replace_fix_line(text, fix_args)
+    proc, elapsed = launch("-np", "2", str(deck_copy(tmp_path, edit)), "-log", "none", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    m = re.search(r"ERROR: Fix hybrid/mpm: the time step ([0-9.e+-]+) s is too long \(checked before the run\): "
+                  r".*Use timestep ([0-9.e+-]+) \(tc/20\) or less", text)
+    assert m, text
+    assert float(m.group(1)) == float(timestep)
+    assert float(m.group(2)) == pytest.approx(safe, rel=1e-5)
     assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
     assert elapsed < STOP_WITHIN
 

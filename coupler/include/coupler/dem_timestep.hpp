@@ -1,0 +1,44 @@
+// dem_timestep.hpp - the stable time step of a Hookean DEM contact (DESIGN.md section 3), for the
+// check fix hybrid/mpm makes before and during a run.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace coupler {
+
+/// A linear spring-dashpot contact between two grains as LAMMPS's gran/hooke(/history) pair
+/// styles apply it: Fn = kn delta - m_eff gamman v_n, Ft = -kt s - m_eff gammat v_t.
+struct HookeanContact {
+  double kn = 0;          // normal stiffness, N/m
+  double kt = 0;          // tangential stiffness, N/m
+  double gamman = 0;      // normal damping rate, 1/s (multiplied by the effective mass)
+  double m_eff = 0;       // effective mass of the pair, kg
+  double inertia = 0.4;   // I = inertia m r^2 of each grain (0.4 spheres, 0.5 disks)
+};
+
+/// Steps per contact the DEM practice asks for (dt <= tc/20), and the fewest below which the
+/// fix refuses to start a run: with fewer than 10 steps per contact the contact force is no longer
+/// resolved, the energy balance of a collision goes wrong and stiffer contacts go unstable.
+inline constexpr double kSafeStepsPerContact = 20;
+inline constexpr double kFewestStepsPerContact = 10;
+/// Fewest steps per contact a run goes on with once started (grains the coupling made lighter):
+/// velocity Verlet goes unstable at (pi/2) steps per undamped contact; 5 keep a margin of 3.
+inline constexpr double kUnstableStepsPerContact = 5;
+
+/// Contact time of the stiffest mode of the pair: the damped normal oscillation,
+/// tc = pi / sqrt(kn/m_eff - gamman^2/4), or the tangential one, whose stiffness the rotation
+/// of both grains raises by the factor 1 + 1/inertia (undamped: the shorter, safe side). An
+/// overdamped normal mode falls back to its undamped frequency sqrt(kn/m_eff).
+inline double contact_time(const HookeanContact &c)
+{
+  const double normal2 = c.kn / c.m_eff;
+  double omega2 = normal2 - 0.25 * c.gamman * c.gamman;
+  if (omega2 <= 0) omega2 = normal2;
+  omega2 = std::max(omega2, c.kt * (1 + 1 / c.inertia) / c.m_eff);
+  if (!(omega2 > 0)) return std::numeric_limits<double>::infinity();
+  return M_PI / std::sqrt(omega2);
+}
+
+}    // namespace coupler
