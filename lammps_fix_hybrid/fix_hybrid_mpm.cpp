@@ -132,8 +132,8 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     settings(new coupler::ContinuumSettings), oracle(new coupler::OracleSettings), diameter_given(false), density_given(false), exchanges(0),
     restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
     converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle), new_grain_mask(1),
-    polydispersity(0.0), timestep_checked(false), fewest_steps_warned(BIG), restored(false), state_loaded(false), clock_time(0.0),
-    clock_step(-1), clock_dt(0.0),
+    polydispersity(0.0), timestep_checked(false), fewest_steps_warned(BIG), restored(false), state_loaded(false),
+    clock_time(0.0), clock_step(-1), clock_dt(0.0),
     stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1)
 {
   // fix ID group hybrid/mpm keyword value ...
@@ -361,12 +361,35 @@ void FixHybridMPM::init()
   }
   if (update->whichflag == 1 && strcmp(update->integrate_style, "verlet") != 0)
     error->all(FLERR, "Fix hybrid/mpm needs run_style verlet");
-  fewest_steps_warned = BIG;
+  // the deck's step, before the coupling has changed any grain; later runs are checked as
+  // the rezones are (their grains may have become lighter)
+  if (!converted) {
+    std::string why;
+    if (dem_steps_per_contact(why) < coupler::kFewestStepsPerContact)
+      error->all(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s is too long (checked before the run): {}",
+                                    update->dt, why));
+  } else check_dem_timestep("at the start of the run");
+}
+
+/* ----------------------------------------------------------------------
+   grains the coupling made or rescaled may be lighter than any before, and
+   their contacts faster: the user is warned while the contacts are still
+   resolved, the run stops before they are not
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::check_dem_timestep(const std::string &when)
+{
   std::string why;
   const double steps = dem_steps_per_contact(why);
-  if (steps < coupler::kFewestStepsPerContact)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s is too long (checked before the run): {}",
-                                  update->dt, why));
+  const std::string what = fmt::format("the time step {:.6g} s is too long {}: {}", update->dt, when, why);
+  if (steps < coupler::kUnstableStepsPerContact) {
+    if (link) fail(FLERR, 0, what.c_str());
+    else error->all(FLERR, "Fix hybrid/mpm: " + what);
+  }
+  if (steps < coupler::kFewestStepsPerContact && steps < 0.9 * fewest_steps_warned) {
+    fewest_steps_warned = steps;
+    if (comm->me == 0) error->warning(FLERR, "Fix hybrid/mpm: " + what);
+  }
 }
 
 /* ----------------------------------------------------------------------
@@ -413,8 +436,8 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: DEM time step {:.6g} s: {}, {:.3g} steps per contact\n",
                                     update->dt, what, steps));
   timestep_checked = true;
-  why = fmt::format("{}, and {:.3g} steps per contact (fewer than {:g}) do not resolve it: the run loses its energy "
-                    "balance and goes unstable. Use timestep {:.6g} (tc/{:g}) or less",
+  why = fmt::format("{}, and {:.3g} steps per contact (fewer than {:g}) do not resolve it (collisions lose their energy "
+                    "balance; at pi/2 steps velocity Verlet goes unstable). Use timestep {:.6g} (tc/{:g}) or less",
                     what, steps, coupler::kFewestStepsPerContact, tc / coupler::kSafeStepsPerContact,
                     coupler::kSafeStepsPerContact);
   return steps;
@@ -1245,17 +1268,7 @@ void FixHybridMPM::rezone(int source)
       line += fmt::format(" {:.17g} {:.17g}", grains_before[k] + ack.before[k], grains_after[k] + after[k]);
     utils::logmesg(lmp, line + "\n");
   }
-  // made and rescaled grains may be lighter than any before, and their contacts faster: the
-  // user is warned while the contacts are still resolved, the run stops before they are not
-  std::string why;
-  const double steps = dem_steps_per_contact(why);
-  const std::string when = fmt::format("the time step {:.6g} s is too long after the rezone at step {}: ",
-                                       update->dt, update->ntimestep);
-  if (steps < coupler::kUnstableStepsPerContact) fail(FLERR, 0, (when + why).c_str());
-  if (steps < coupler::kFewestStepsPerContact && steps < 0.9 * fewest_steps_warned) {
-    fewest_steps_warned = steps;
-    if (comm->me == 0) error->warning(FLERR, "Fix hybrid/mpm: " + when + why);
-  }
+  check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
 }
 
 /* ---------------------------------------------------------------------- */

@@ -116,7 +116,7 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
   std::unique_ptr<coupler::PackingTemplate<3>> template3;
   bool timestep_checked;                  // the DEM time step was checked (and logged) once
-  double fewest_steps_warned;             // steps per contact of the last warning this run
+  double fewest_steps_warned;             // steps per contact of the last warning
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
   std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)
@@ -144,6 +144,7 @@ class FixHybridMPM : public Fix {
   bool set_oracle_keyword(const std::string &key, const std::string &val);
   void check_oracle();
   double dem_steps_per_contact(std::string &why);
+  void check_dem_timestep(const std::string &when);
   void store_atom_stress();
   template <int D> void exchange(bool force_output);
   template <int D> coupler::GrainTransfer<D> &transfer();
