@@ -116,7 +116,7 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
   std::unique_ptr<coupler::PackingTemplate<3>> template3;
   bool timestep_checked;                  // the DEM time step was checked (and logged) once
-  double fewest_steps_warned;             // steps per contact of the last warning
+  double fewest_steps_warned;             // steps per contact at the last warning
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
   std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)
@@ -213,10 +213,10 @@ E: Fix hybrid/mpm: the time step ... is too long (checked before the run) ...
 Fewer than 10 DEM steps per contact of the stiffest pair (the lightest grains, at their
 share in hybrid cells). Use the timestep the message names (tc/20).
 
-W: Fix hybrid/mpm: the time step ... is too long after the rezone at step ...
+W: Fix hybrid/mpm: the time step ... became too long after the rezone at step ...
 
 Grains made or rescaled by a rezone are lighter than any before: fewer than 10 steps per
-contact. Below 5 this is an error and the run stops. Use the timestep the message names.
+contact. See docs/fix_hybrid_mpm.md, "DEM time step".
 
 W: Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and gran/hooke/history only ...
 

@@ -65,10 +65,6 @@ TEST(DemTimestep, AllowedStepsResolveTheContactAndTooLongOnesDoNot) {
     EXPECT_NEAR(r.restitution, 1.0, 0.02) << steps << " steps per contact";
     EXPECT_LT(r.max_energy_ratio, 1.03) << steps << " steps per contact";
   }
-  // where a started run stops: still stable, if no longer accurate
-  const Collision coarse = collide(c, tc / coupler::kUnstableStepsPerContact);
-  EXPECT_NEAR(coarse.restitution, 1.0, 0.15);
-  EXPECT_LT(coarse.max_energy_ratio, 1.3);
   // beyond Verlet's limit dt = 2/omega = (2/pi) tc the contact blows up
   const Collision unstable = collide(c, 0.7 * tc);
   EXPECT_FALSE(unstable.max_energy_ratio < 2.0);

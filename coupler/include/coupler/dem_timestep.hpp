@@ -23,9 +23,6 @@ struct HookeanContact {
 /// resolved, the energy balance of a collision goes wrong and stiffer contacts go unstable.
 inline constexpr double kSafeStepsPerContact = 20;
 inline constexpr double kFewestStepsPerContact = 10;
-/// Fewest steps per contact a run goes on with once started (grains the coupling made lighter):
-/// velocity Verlet goes unstable at (pi/2) steps per undamped contact; 5 keep a margin of 3.
-inline constexpr double kUnstableStepsPerContact = 5;
 
 /// Contact time of the stiffest mode of the pair: the damped normal oscillation,
 /// tc = pi / sqrt(kn/m_eff - gamman^2/4), or the tangential one, whose stiffness the rotation
