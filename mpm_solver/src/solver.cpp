@@ -61,7 +61,14 @@ Solver<D>::Solver(const Scene& scene) : scene_(scene) {
   if (points_.size() == 0 && !scene.coupled)
     throw UserError("the material blocks contain no points; check their sizes against cell_size");
 
-  // Domain faces act as walls of the chosen kind.
+  for (const auto& b : scene.boundaries) {
+    RigidBoundary<D> rb;
+    rb.spec = b;
+    boundaries_.push_back(rb);
+  }
+  // Domain faces act as walls of the chosen kind. They come last: applied after the scene's
+  // boundaries, they have the final word (a moving lid that reaches a face cannot push
+  // material out of the domain).
   for (int a = 0; a < D; ++a)
     for (int side = 0; side < 2; ++side) {
       Boundary wall;
@@ -76,11 +83,6 @@ Solver<D>::Solver(const Scene& scene) : scene_(scene) {
       rb.spec = wall;
       boundaries_.push_back(rb);
     }
-  for (const auto& b : scene.boundaries) {
-    RigidBoundary<D> rb;
-    rb.spec = b;
-    boundaries_.push_back(rb);
-  }
   update_rigid_boundaries();
 
   for (std::size_t p = 0; p < points_.size(); ++p) {
@@ -383,8 +385,8 @@ void Solver<D>::g2p(double dt) {
   const Vec<D> lo = grid_.domain_lower.array() - 1.5 * dx, hi = grid_.domain_upper.array() + 1.5 * dx;
   const std::size_t none = std::numeric_limits<std::size_t>::max();
   std::size_t first_bad = none;
-  double max_speed_sq = 0;
-#pragma omp parallel for schedule(static) num_threads(active_threads()) reduction(max : max_speed_sq) \
+  double max_speed_sq = 0, max_wave4 = 0;
+#pragma omp parallel for schedule(static) num_threads(active_threads()) reduction(max : max_speed_sq, max_wave4) \
     reduction(min : first_bad)
   for (std::size_t p = 0; p < n_points; ++p) {
     const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
@@ -409,18 +411,23 @@ void Solver<D>::g2p(double dt) {
       update_mu_i<D>(model, C, dt, points_.mass[p] / points_.volume(p), points_.stress[p], points_.plastic_strain[p]);
     const double speed_sq = v.squaredNorm();
     max_speed_sq = std::max(max_speed_sq, speed_sq);
+    const double Je2 = model.kind == ModelKind::DruckerPrager ? points_.be[p].determinant() : 1.0;
+    max_wave4 = std::max(max_wave4, model.wave_speed4(points_.mass[p] / points_.volume0[p], points_.J[p], Je2));
     const bool ok = std::isfinite(speed_sq) && std::isfinite(points_.stress[p].sum()) && points_.J[p] > 0 &&
                     (points_.x[p].array() > lo.array()).all() && (points_.x[p].array() < hi.array()).all();
     if (!ok) first_bad = std::min(first_bad, p);
   }
   max_speed_ = std::sqrt(max_speed_sq);
+  if (n_points > 0) max_wave_speed_ = std::sqrt(std::sqrt(max_wave4));
   if (first_bad != none) {
     const auto& x = points_.x[first_bad];
     std::ostringstream msg;
     if (!std::isfinite(points_.v[first_bad].squaredNorm()) || !std::isfinite(points_.stress[first_bad].sum()) ||
         !(points_.J[first_bad] > 0))
       msg << "the MPM state became non-finite or inverted at step " << steps_ + 1 << " (t = " << time_ + dt
-          << " s, point " << first_bad << "); the time step is too large for this material: lower [time] cfl or dt";
+          << " s, point " << first_bad << " at " << format_vec(x.data(), D) << ": J = " << points_.J[first_bad]
+          << ", |v| = " << points_.v[first_bad].norm() << " m/s, dt |grad v| = " << dt * points_.C[first_bad].norm()
+          << "); the time step is too large for this material: lower [time] cfl or dt";
     else
       msg << "material point " << first_bad << " left the grid domain at t = " << time_ + dt
           << " s, position " << format_vec(x.data(), D) << "; the domain is "

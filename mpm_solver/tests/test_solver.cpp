@@ -343,6 +343,29 @@ TEST(Boundaries, MovingIntruderPushesMaterialAndIsNotPenetrated) {
   EXPECT_GT(moving_down, 50) << "the intruder drives material ahead of it";
 }
 
+TEST(Boundaries, DomainFacesHoldMaterialThatAMovingLidDrivesAtThem) {
+  // A sticky lid across the whole domain drags a layer at 20 m/s towards the right face: the
+  // face (a slip wall) must stop the material there, although the lid's nodes reach it.
+  mpm::Scene scene = base_scene(2);
+  scene.gravity = {0, -9.81, 0};
+  scene.grid.cell_size = 0.005;
+  scene.grid.upper = {0.1, 0.05, 0};
+  scene.materials[0].drucker_prager.youngs_modulus = 2e6;
+  scene.blocks.push_back(box({0.0, 0.0, 0}, {0.1, 0.02, 0}, 4));
+  mpm::Boundary lid;
+  lid.contact = mpm::Contact::Sticky;
+  lid.separating = false;
+  lid.point = {0, 0.02, 0};
+  lid.normal = {0, -1, 0};
+  lid.velocity = {20.0, 0, 0};
+  scene.boundaries.push_back(lid);
+  mpm::Solver<2> s(scene);
+  ASSERT_NO_THROW(while (s.time() < 0.004) s.step(std::min(s.stable_dt(), 0.004 - s.time())));
+  double right = 0;
+  for (std::size_t i = 0; i < s.points().size(); ++i) right = std::max(right, s.points().x[i][0]);
+  EXPECT_LT(right, 0.1);
+}
+
 TEST(Seeding, DiskAndCylinderHoldTheirVolume) {
   // Points on the lattice inside a disk (2D) or cylinder (3D) sum to its volume.
   for (int dim : {2, 3}) {
