@@ -1,0 +1,263 @@
+#!/usr/bin/env python3
+"""Error-versus-run-time report of the planar granular column collapse: pure LAMMPS DEM (the
+reference), the hybrid at several zone settings, pure MPM with each constitutive model, and
+the noise floors of the reference itself, each with its wall time and its error.
+
+    tools/collapse_report.py --out runs/report [--width 0.1] [--aspect 2] [--np 2]
+                             [--runs dem,dem_seed,hybrid_fixed,...] [--liggghts]
+
+Runs (all from the same settled column, except dem_seed):
+  dem                 LAMMPS DEM, input_decks/column_collapse/dem_2d.lmp (the reference)
+  dem_seed            the same scene from another packing (seed 2): the reference's own noise
+  hybrid_fixed        fix hybrid/mpm with a fixed continuum block in the static wedge (hybrid 1)
+  hybrid_adaptive     adaptive zones, the deck's default depth (hybrid 2)
+  hybrid_adaptive_d2  adaptive zones, continuum from 2 cells below the surface
+  mpm_drucker_prager  mpm_solver alone, Drucker-Prager
+  mpm_mu_i            mpm_solver alone, mu(I)
+With --liggghts, the reduced quasi-3D slab collapse (tools/dem3d_collapse.py) runs in LAMMPS
+and in LIGGGHTS: their runout difference is the reference's noise floor between codes
+(LIGGGHTS runs no 2D scene).
+
+Errors against the reference: the final surface (RMS height difference from the wall to the
+farther front, over H0), the runout (Lf - L0)/L0 (relative difference), and whether the runout
+lies in the published range (DESIGN.md section 6). Speedup: the reference's wall time over the
+run's, side by side in this job. Writes <out>/report.md, report.json, error_vs_time.png
+(surface error against wall time, the noise floor as a band) and profiles.png.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from column_collapse import (ColumnCollapse, combine_surfaces, normalised_runout, points_surface,  # noqa: E402
+                             published_runout_range, surface_error)
+from dem_collapse import run as run_dem  # noqa: E402
+from mpm_results import load_run  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+SOLVER = REPO / "build" / "mpm_solver" / "mpm_solver"
+D = 0.002                 # grain diameter, m
+ALL_RUNS = ["dem", "dem_seed", "hybrid_fixed", "hybrid_adaptive", "hybrid_adaptive_d2", "mpm_drucker_prager",
+            "mpm_mu_i"]
+LABELS = {
+    "dem": "LAMMPS DEM (reference)", "dem_seed": "LAMMPS DEM, another packing (noise floor)",
+    "hybrid_fixed": "hybrid, fixed continuum wedge", "hybrid_adaptive": "hybrid, adaptive zones",
+    "hybrid_adaptive_d2": "hybrid, adaptive, depth 2 cells", "mpm_drucker_prager": "MPM Drucker-Prager",
+    "mpm_mu_i": "MPM mu(I)",
+}
+
+
+@dataclass
+class Outcome:
+    name: str
+    label: str
+    runout: float
+    surface: tuple                 # (x, height) arrays, m
+    wall: float                    # s
+    size: str
+    steps: str
+    height: float                  # final height / L0
+    surface_error: float = float("nan")
+    runout_error: float = float("nan")
+    extra: dict = field(default_factory=dict)
+
+
+def dem_outcome(name: str, res, points=None) -> Outcome:
+    surface = np.array(res.profile).T
+    size, height = f"{res.grains} grains", res.final_height
+    if points is not None:    # the hybrid's continuum: the surface is the upper envelope of both
+        surface = combine_surfaces(surface, points_surface(points, res.width / 20, 2 * D))
+        size += f" + {len(points)} points"
+        height = max(height, float(points[:, 1].max()))
+    return Outcome(name, LABELS[name], res.runout, tuple(surface), res.wall_time, size, str(res.steps),
+                   height / res.width, extra={"ms_per_step": 1e3 * res.loop_time / max(res.steps, 1)})
+
+
+def run_mpm(model: str, aspect: float, width: float, cell: float, out: Path, threads: int) -> Outcome:
+    scene = ColumnCollapse(aspect=aspect, width=width, cell_size=cell, model=model, output_interval=0.05)
+    work = out / f"mpm_{model}"
+    path = scene.write(work)
+    summary = work / "summary.json"
+    start = time.perf_counter()
+    subprocess.run([str(SOLVER), str(path), "--summary", str(summary), "--quiet"], check=True,
+                   env=dict(os.environ, OMP_NUM_THREADS=str(threads)), stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    final = load_run(work / "output").frame(-1)
+    figures = json.loads(summary.read_text())
+    name = f"mpm_{model}"
+    return Outcome(name, LABELS[name], normalised_runout(final["position"], width, cell),
+                   tuple(points_surface(final["position"], cell / 2, 2 * D)), wall, f"{figures['points']} points",
+                   f"{figures['steps']} (MPM)", float(np.max(final["position"][:, -1])) / width,
+                   extra={"ms_per_step": 1e3 * wall / figures["steps"]})
+
+
+def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: Path) -> Outcome:
+    common = dict(aspect=aspect, width=width, d=D, np_=np_)
+    if name == "dem":
+        res = run_dem(**common, out=out / "dem")
+        if res.prepared:    # time the collapse alone, as the others', from the cached column
+            res = run_dem(**common, out=out / "dem")
+        return dem_outcome(name, res)
+    if name == "dem_seed":
+        res = run_dem(**common, out=out / "dem_seed", seed=2)
+        if res.prepared:
+            res = run_dem(**common, out=out / "dem_seed", seed=2)
+        return dem_outcome(name, res)
+    if name.startswith("hybrid_"):
+        hvars = {"hybrid_fixed": {}, "hybrid_adaptive": {"hybrid": 2},
+                 "hybrid_adaptive_d2": {"hybrid": 2, "hdepth": 2 * 2.5 * D}}[name]
+        res = run_dem(**common, out=out / name, hybrid_vars=hvars)
+        return dem_outcome(name, res, load_run(out / name / "frames").frame(-1)["position"])
+    if name.startswith("mpm_"):
+        return run_mpm(name[4:], aspect, width, cell, out, np_)
+    raise ValueError(f"unknown run '{name}' (known: {', '.join(ALL_RUNS)})")
+
+
+def liggghts_floor(np_: int, out: Path) -> dict:
+    """Runout of the reduced quasi-3D slab collapse in LAMMPS and LIGGGHTS (dem3d_collapse)."""
+    from dem3d_collapse import run as run3d
+    lmp = run3d(code="lammps", np_=np_, out=out / "slab_lammps")
+    lig = run3d(code="liggghts", np_=np_, out=out / "slab_liggghts")
+    return dict(lammps=lmp.runout, liggghts=lig.runout, difference=abs(lmp.runout - lig.runout) /
+                (0.5 * (lmp.runout + lig.runout)), wall_lammps=lmp.wall_time, wall_liggghts=lig.wall_time)
+
+
+def make_report(runs: list[Outcome], aspect: float, width: float, np_: int, codes: dict | None,
+                command: str = "tools/collapse_report.py") -> str:
+    ref = runs[0]
+    lo, hi = published_runout_range(aspect)
+
+    def law(r: float) -> str:
+        return "yes" if lo <= r <= hi else f"no ({(r - np.clip(r, lo, hi)) / hi:+.0%})"
+
+    lines = [f"# Column collapse, aspect ratio {aspect:g}, L0 = {width:g} m: error against run time", "",
+             f"`{command}`, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {np_} LAMMPS "
+             "rank(s) for every DEM and hybrid run (the hybrid adds one MPM process), MPM runs on as many threads. "
+             f"Published runout (Lf - L0)/L0 for a = {aspect:g}: {lo:.2f} to {hi:.2f} (Lube et al. 2005; "
+             "Lajeunesse et al. 2005). Surface error: RMS difference of the final surface height from the "
+             "reference's, from the wall to the farther front, over H0. Speedup: the reference's wall time over "
+             "the run's, side by side in this job.", "",
+             "| run | (Lf - L0)/L0 | runout error | in published range | surface error vs DEM | final height / L0 | "
+             "size | steps | ms per step | wall s | speedup vs DEM |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in runs:
+        err = "-" if r is ref else f"{r.surface_error:.1%}"
+        rerr = "-" if r is ref else f"{r.runout_error:+.1%}"
+        lines.append(f"| {r.label} | {r.runout:.2f} | {rerr} | {law(r.runout)} | {err} | {r.height:.2f} | {r.size} | "
+                     f"{r.steps} | {r.extra.get('ms_per_step', float('nan')):.3f} | {r.wall:.1f} | "
+                     f"{ref.wall / r.wall:.2f} |")
+    if codes:
+        lines += ["", f"Noise floor between codes (reduced quasi-3D slab, tools/dem3d_collapse.py): runout "
+                      f"{codes['lammps']:.3f} in LAMMPS, {codes['liggghts']:.3f} in LIGGGHTS, "
+                      f"{codes['difference']:.1%} apart ({codes['wall_lammps']:.0f} s and "
+                      f"{codes['wall_liggghts']:.0f} s)."]
+    return "\n".join(lines) + "\n"
+
+
+def plots(runs: list[Outcome], aspect: float, width: float, out: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ref, lo_hi = runs[0], published_runout_range(aspect)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    floor = [r.surface_error for r in runs if r.name == "dem_seed"]
+    if floor:
+        ax.axhspan(0, floor[0], color="grey", alpha=0.25, label="noise floor (DEM, another packing)")
+    ax.axvline(ref.wall, color="k", ls=":", lw=1, label="DEM reference wall time")
+    for i, r in enumerate(runs[1:]):
+        ax.plot(r.wall, r.surface_error, "o", color=f"C{i}", label=r.label)
+    ax.set_xscale("log")
+    ax.set_xlabel("wall time, s")
+    ax.set_ylabel("final-surface error vs DEM (RMS / H0)")
+    ax.set_title(f"Column collapse a = {aspect:g}: error against run time")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "error_vs_time.png", dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(8, 3.2))
+    for i, r in enumerate(runs):
+        x, h = r.surface
+        ax.plot(np.asarray(x) / width, np.asarray(h) / width, "k" if r is ref else f"C{i - 1}",
+                lw=2 if r is ref else 1, label=r.label)
+    ax.axvspan(1 + lo_hi[0], 1 + lo_hi[1], color="grey", alpha=0.2, label="published runout")
+    ax.set_xlabel("x / L0")
+    ax.set_ylabel("surface height / L0")
+    ax.set_title(f"Column collapse, a = {aspect:g}: final surface")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "profiles.png", dpi=120)
+    plt.close(fig)
+
+
+def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 0.1, cell: float = 0.005,
+               np_: int = 2, liggghts: bool = False, progress: bool = True,
+               command: str = "tools/collapse_report.py") -> tuple[list[Outcome], dict | None]:
+    """Runs the matrix (the reference "dem" first), writes the report and plots into out."""
+    names = ["dem"] + [n for n in names if n != "dem"]
+    unknown = [n for n in names if n not in ALL_RUNS]
+    if unknown:
+        raise ValueError(f"unknown run(s) {', '.join(unknown)} (known: {', '.join(ALL_RUNS)})")
+    out.mkdir(parents=True, exist_ok=True)
+    runs, codes = [], None
+    with tqdm(total=len(names) + int(liggghts), desc="collapse report", unit="run", disable=not progress) as bar:
+        for name in names:
+            bar.set_postfix_str(name)
+            runs.append(run_one(name, aspect, width, cell, np_, out))
+            bar.update()
+        if liggghts:
+            bar.set_postfix_str("LAMMPS vs LIGGGHTS")
+            codes = liggghts_floor(np_, out)
+            bar.update()
+    ref = runs[0]
+    height0 = aspect * width
+    for r in runs[1:]:
+        r.surface_error = surface_error(r.surface, ref.surface, height0)
+        r.runout_error = (r.runout - ref.runout) / ref.runout
+    (out / "report.md").write_text(make_report(runs, aspect, width, np_, codes, command))
+    (out / "report.json").write_text(json.dumps(
+        {"aspect": aspect, "width": width, "np": np_, "codes": codes,
+         "runs": [{"name": r.name, "label": r.label, "runout": r.runout, "runout_error": r.runout_error,
+                   "surface_error": r.surface_error, "wall": r.wall, "size": r.size, "steps": r.steps,
+                   "height": r.height, "surface": [np.asarray(a).tolist() for a in r.surface]} for r in runs]},
+        indent=1))
+    plots(runs, aspect, width, out)
+    return runs, codes
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", type=Path, default=REPO / "runs" / "report", help="output directory")
+    p.add_argument("--aspect", type=float, default=2.0, help="column aspect ratio H0/L0")
+    p.add_argument("--width", type=float, default=0.1, help="column width L0, m (0.05 for the reduced report)")
+    p.add_argument("--cell", type=float, default=0.005, help="cell size of the pure MPM runs, m")
+    p.add_argument("--np", dest="np_", type=int, default=os.cpu_count() or 1, help="LAMMPS ranks and MPM threads")
+    p.add_argument("--runs", default=",".join(ALL_RUNS), help="comma-separated runs (see above)")
+    p.add_argument("--liggghts", action="store_true", help="add the LAMMPS-vs-LIGGGHTS noise floor (3D slab)")
+    args = p.parse_args(argv)
+    if not SOLVER.exists():
+        p.error(f"{SOLVER} is not built; run tools/setup.sh")
+    try:
+        runs, codes = run_report(args.out, [n.strip() for n in args.runs.split(",") if n.strip()], args.aspect,
+                                 args.width, args.cell, args.np_, args.liggghts,
+                                 command=" ".join(["tools/collapse_report.py"] + (argv or sys.argv[1:])))
+    except ValueError as e:
+        p.error(str(e))
+    print((args.out / "report.md").read_text())
+    print(f"collapse_report: {args.out / 'report.md'}, {args.out / 'error_vs_time.png'}, {args.out / 'profiles.png'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
