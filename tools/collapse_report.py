@@ -114,8 +114,9 @@ def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: 
             res = run_dem(**common, out=out / "dem_seed", seed=2)
         return dem_outcome(name, res)
     if name.startswith("hybrid_"):
+        # the deck's cell is L0/10: "depth 2 cells" is 0.2 L0
         hvars = {"hybrid_fixed": {}, "hybrid_adaptive": {"hybrid": 2},
-                 "hybrid_adaptive_d2": {"hybrid": 2, "hdepth": 2 * 2.5 * D}}[name]
+                 "hybrid_adaptive_d2": {"hybrid": 2, "hdepth": 0.2 * width}}[name]
         res = run_dem(**common, out=out / name, hybrid_vars=hvars)
         return dem_outcome(name, res, load_run(out / name / "frames").frame(-1)["position"])
     if name.startswith("mpm_"):
@@ -164,6 +165,17 @@ def make_report(runs: list[Outcome], aspect: float, width: float, np_: int, code
     return "\n".join(lines) + "\n"
 
 
+def finish(fig, ax, xlabel: str, ylabel: str, title: str, path: Path) -> None:
+    import matplotlib.pyplot as plt
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def plots(runs: list[Outcome], aspect: float, width: float, out: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
@@ -178,13 +190,8 @@ def plots(runs: list[Outcome], aspect: float, width: float, out: Path) -> None:
     for i, r in enumerate(runs[1:]):
         ax.plot(r.wall, r.surface_error, "o", color=f"C{i}", label=r.label)
     ax.set_xscale("log")
-    ax.set_xlabel("wall time, s")
-    ax.set_ylabel("final-surface error vs DEM (RMS / H0)")
-    ax.set_title(f"Column collapse a = {aspect:g}: error against run time")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "error_vs_time.png", dpi=120)
-    plt.close(fig)
+    finish(fig, ax, "wall time, s", "final-surface error vs DEM (RMS / H0)",
+           f"Column collapse a = {aspect:g}: error against run time", out / "error_vs_time.png")
 
     fig, ax = plt.subplots(figsize=(8, 3.2))
     for i, r in enumerate(runs):
@@ -192,13 +199,8 @@ def plots(runs: list[Outcome], aspect: float, width: float, out: Path) -> None:
         ax.plot(np.asarray(x) / width, np.asarray(h) / width, "k" if r is ref else f"C{i - 1}",
                 lw=2 if r is ref else 1, label=r.label)
     ax.axvspan(1 + lo_hi[0], 1 + lo_hi[1], color="grey", alpha=0.2, label="published runout")
-    ax.set_xlabel("x / L0")
-    ax.set_ylabel("surface height / L0")
-    ax.set_title(f"Column collapse, a = {aspect:g}: final surface")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "profiles.png", dpi=120)
-    plt.close(fig)
+    finish(fig, ax, "x / L0", "surface height / L0", f"Column collapse, a = {aspect:g}: final surface",
+           out / "profiles.png")
 
 
 def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 0.1, cell: float = 0.005,

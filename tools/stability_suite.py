@@ -238,6 +238,7 @@ def run_continuum(name, what, expected, build, message, checks, out_dir: Path, t
 
 
 # -------------------------------------------------------------------------------- grains
+GRAIN_CASES = ("stiff_grains_deck_step", "stiff_grains_safe_step", "impact_grains")
 THERMO_RE = re.compile(r"^\s*Step Atoms KinEng f_couple\[8\] f_couple\[9\] f_couple\[10\] f_couple\[15\]\s*$")
 
 
@@ -320,8 +321,7 @@ def run_suite(out_dir: Path, np_: int = 2, only: list[str] | None = None, timeou
     """Runs the cases (all, or those named in `only`) and writes the report into out_dir."""
     out_dir.mkdir(parents=True, exist_ok=True)
     continuum = [c for c in continuum_cases() if only is None or c[0] in only]
-    grain_names = ("stiff_grains_deck_step", "stiff_grains_safe_step", "impact_grains")
-    want_grains = only is None or any(n in grain_names for n in only)
+    want_grains = only is None or any(n in GRAIN_CASES for n in only)
     outcomes = []
     with tqdm(total=len(continuum) + (3 if want_grains else 0), desc="stability", unit="case",
               disable=not progress) as bar:
@@ -345,6 +345,10 @@ def main(argv=None) -> int:
     p.add_argument("--only", nargs="*", default=None, metavar="NAME", help="run only these cases")
     p.add_argument("--timeout", type=float, default=600, help="s per case")
     args = p.parse_args(argv)
+    known = [c[0] for c in continuum_cases()] + list(GRAIN_CASES)
+    unknown = [n for n in args.only or [] if n not in known]
+    if unknown:
+        p.error(f"unknown case(s) {', '.join(unknown)} (known: {', '.join(known)})")
     outcomes = run_suite(Path(args.out), args.np_, args.only, args.timeout)
     print(report(outcomes))
     return 0 if outcomes and all(o.ok for o in outcomes) else 1
