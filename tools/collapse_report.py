@@ -205,22 +205,34 @@ def plots(runs: list[Outcome], aspect: float, width: float, out: Path) -> None:
 
 def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 0.1, cell: float = 0.005,
                np_: int = 2, liggghts: bool = False, progress: bool = True,
-               command: str = "tools/collapse_report.py") -> tuple[list[Outcome], dict | None]:
-    """Runs the matrix (the reference "dem" first), writes the report and plots into out."""
+               command: str = "tools/collapse_report.py", resume: bool = False) -> tuple[list[Outcome], dict | None]:
+    """Runs the matrix (the reference "dem" first), writes the report and plots into out. Each
+    run's outcome is saved as it ends (<out>/<run>.outcome.json); with resume, saved outcomes
+    are reused, so an interrupted matrix goes on where it stopped (their wall times stay those
+    of the run that made them)."""
     names = ["dem"] + [n for n in names if n != "dem"]
     unknown = [n for n in names if n not in ALL_RUNS]
     if unknown:
         raise ValueError(f"unknown run(s) {', '.join(unknown)} (known: {', '.join(ALL_RUNS)})")
+    out = out.resolve()    # the drivers run the codes in other working directories
     out.mkdir(parents=True, exist_ok=True)
     runs, codes = [], None
     with tqdm(total=len(names) + int(liggghts), desc="collapse report", unit="run", disable=not progress) as bar:
         for name in names:
             bar.set_postfix_str(name)
-            runs.append(run_one(name, aspect, width, cell, np_, out))
+            saved = out / f"{name}.outcome.json"
+            if resume and saved.exists():
+                runs.append(Outcome(**json.loads(saved.read_text())))
+            else:
+                runs.append(run_one(name, aspect, width, cell, np_, out))
+                saved.write_text(json.dumps(dict(vars(runs[-1]), surface=[np.asarray(a).tolist()
+                                                                         for a in runs[-1].surface])))
             bar.update()
         if liggghts:
             bar.set_postfix_str("LAMMPS vs LIGGGHTS")
-            codes = liggghts_floor(np_, out)
+            saved = out / "codes.json"
+            codes = json.loads(saved.read_text()) if resume and saved.exists() else liggghts_floor(np_, out)
+            saved.write_text(json.dumps(codes))
             bar.update()
     ref = runs[0]
     height0 = aspect * width
@@ -247,13 +259,15 @@ def main(argv=None) -> int:
     p.add_argument("--np", dest="np_", type=int, default=os.cpu_count() or 1, help="LAMMPS ranks and MPM threads")
     p.add_argument("--runs", default=",".join(ALL_RUNS), help="comma-separated runs (see above)")
     p.add_argument("--liggghts", action="store_true", help="add the LAMMPS-vs-LIGGGHTS noise floor (3D slab)")
+    p.add_argument("--resume", action="store_true", help="reuse the outcomes an earlier call saved in --out")
     args = p.parse_args(argv)
     if not SOLVER.exists():
         p.error(f"{SOLVER} is not built; run tools/setup.sh")
     try:
         runs, codes = run_report(args.out, [n.strip() for n in args.runs.split(",") if n.strip()], args.aspect,
                                  args.width, args.cell, args.np_, args.liggghts,
-                                 command=" ".join(["tools/collapse_report.py"] + (argv or sys.argv[1:])))
+                                 command=" ".join(["tools/collapse_report.py"] + (argv or sys.argv[1:])),
+                                 resume=args.resume)
     except ValueError as e:
         p.error(str(e))
     print((args.out / "report.md").read_text())
