@@ -24,6 +24,17 @@ mpm::Scene base_scene(int dim) {
   return s;
 }
 
+/// A 2D scene under gravity with soft sand (E = 2 MPa) on a grid of the given cell and extent.
+mpm::Scene gravity_scene(double cell, mpm::Vec3 lower, mpm::Vec3 upper) {
+  mpm::Scene s = base_scene(2);
+  s.gravity = {0, -9.81, 0};
+  s.grid.cell_size = cell;
+  s.grid.lower = lower;
+  s.grid.upper = upper;
+  s.materials[0].drucker_prager.youngs_modulus = 2e6;
+  return s;
+}
+
 mpm::Block box(mpm::Vec3 lo, mpm::Vec3 hi, int ppc) {
   mpm::Block b;
   b.material = "sand";
@@ -286,12 +297,7 @@ TEST(Solver, UnstableFixedStepIsRefusedWithTheSafeStep) {
 TEST(Boundaries, CoulombFloorDeceleratesSlidingBlockAtMuG) {
   // A block sliding on a friction floor decelerates at mu g (Coulomb), the
   // analytic answer, since the floor's normal impulse is the block's weight.
-  mpm::Scene scene = base_scene(2);
-  scene.gravity = {0, -9.81, 0};
-  scene.grid.cell_size = 0.01;
-  scene.grid.lower = {0, -0.02, 0};
-  scene.grid.upper = {1.0, 0.2, 0};
-  scene.materials[0].drucker_prager.youngs_modulus = 2e6;
+  mpm::Scene scene = gravity_scene(0.01, {0, -0.02, 0}, {1.0, 0.2, 0});
   scene.blocks.push_back(box({0.05, 0.0, 0}, {0.25, 0.05, 0}, 4));
   scene.blocks.back().velocity = {1.0, 0, 0};
   scene.blocks.back().geostatic = true;
@@ -314,11 +320,7 @@ TEST(Boundaries, CoulombFloorDeceleratesSlidingBlockAtMuG) {
 
 TEST(Boundaries, MovingIntruderPushesMaterialAndIsNotPenetrated) {
   // A rigid box driven down into a bed at a prescribed speed.
-  mpm::Scene scene = base_scene(2);
-  scene.gravity = {0, -9.81, 0};
-  scene.grid.cell_size = 0.01;
-  scene.grid.upper = {0.6, 0.4, 0};
-  scene.materials[0].drucker_prager.youngs_modulus = 2e6;
+  mpm::Scene scene = gravity_scene(0.01, {0, 0, 0}, {0.6, 0.4, 0});
   scene.blocks.push_back(box({0.0, 0.0, 0}, {0.6, 0.2, 0}, 4));
   scene.blocks.back().geostatic = true;
   mpm::Boundary intruder;
@@ -346,11 +348,7 @@ TEST(Boundaries, MovingIntruderPushesMaterialAndIsNotPenetrated) {
 TEST(Boundaries, DomainFacesHoldMaterialThatAMovingLidDrivesAtThem) {
   // A sticky lid across the whole domain drags a layer at 20 m/s towards the right face: the
   // face (a slip wall) must stop the material there, although the lid's nodes reach it.
-  mpm::Scene scene = base_scene(2);
-  scene.gravity = {0, -9.81, 0};
-  scene.grid.cell_size = 0.005;
-  scene.grid.upper = {0.1, 0.05, 0};
-  scene.materials[0].drucker_prager.youngs_modulus = 2e6;
+  mpm::Scene scene = gravity_scene(0.005, {0, 0, 0}, {0.1, 0.05, 0});
   scene.blocks.push_back(box({0.0, 0.0, 0}, {0.1, 0.02, 0}, 4));
   mpm::Boundary lid;
   lid.contact = mpm::Contact::Sticky;
