@@ -864,54 +864,39 @@ const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
 
 /* ----------------------------------------------------------------------
    enrichment, in the cells whose zone wants grains and which have too few
-   for their share: new grains are cut from the packing template where the
-   points are and where no grain of any rank is in the way; together with
-   the cell's old grains they take exactly the grains' share of the cell's
-   material (points plus old grains), at the grains' solid density, with
-   velocities from the continuum's affine field plus one rigid correction.
+   for the material there (or, discrete, hold points): new grains are cut
+   from the packing template where the points are and where no grain of any
+   rank is in the way, nearest the points' centre first, as many as the
+   cell's material (points plus old grains) fills at their solid mass; each
+   is made at its weight times its solid mass, with the continuum's affine
+   velocity. Their sums join those of the cell's old grains in `sums`: the
+   MPM process then corrects old and new grains together (rezone step 4).
    All ranks compute the same grains; each makes those in its sub-domain.
-   old_sums: this rank's sums of the old grains per planned cell. Returns per
-   cell the share of its material the grains took where grains were made,
-   -1 elsewhere.
+   Returns the number this rank made.
 ------------------------------------------------------------------------- */
 
 template <int D>
-std::vector<double> FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
-                                                   const std::map<std::size_t, coupler::BodySums<D>> &old_sums,
-                                                   bigint &made)
+bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
+                                 std::map<std::size_t, coupler::GrainSums<D>> &sums)
 {
   using Mat = Eigen::Matrix<double, D, D>;
   const auto &grid = transfer<D>().grid();
-  std::vector<double> made_in_cell(cells.size(), -1.0);
-  made = 0;
+  bigint made = 0;
   std::vector<std::size_t> making;    // planned cells that make grains
-  std::map<std::uint64_t, std::size_t> making_slot;
   for (std::size_t k = 0; k < cells.size(); ++k)
-    if (cells[k].make_grains) making_slot.emplace(cells[k].cell, making.size()), making.push_back(k);
-  if (making.empty()) return made_in_cell;
+    if (cells[k].make_grains) making.push_back(k);
+  if (making.empty()) return made;
   const double density = settings->grain_density;
-  auto slot_of_atom = [&](int i) { return slot_of_cell_at<D>(grid, atom->x[i], making_slot); };
 
-  // the old grains of these cells, over all ranks: what they carry, and their sums at the
-  // solid density (as members of the new body set)
+  // the old grains of these cells, over all ranks: what they carry, and their sums at their
+  // solid mass (as members of the new body set)
   std::vector<coupler::BodySums<D>> carried(making.size()), solid(making.size());
   for (std::size_t j = 0; j < making.size(); ++j) {
-    const auto it = old_sums.find(making[j]);
-    if (it != old_sums.end()) carried[j] = it->second;
+    const auto it = sums.find(making[j]);
+    if (it != sums.end()) carried[j] = it->second.carried, solid[j] = it->second.solid;
   }
-  double **x = atom->x, **v = atom->v, **omega = atom->omega;
+  double **x = atom->x;
   const int nlocal = atom->nlocal;
-  for (int i = 0; i < nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const std::int64_t j = slot_of_atom(i);
-    if (j < 0) continue;
-    const double r = atom->radius[i], m = density * coupler::grain_volume<D>(r);
-    coupler::Spin<D> spin;
-    if constexpr (D == 2) spin[0] = inertia * m * r * r * omega[i][2];
-    else spin = inertia * m * r * r * Eigen::Map<const Eigen::Vector3d>(omega[i]);
-    solid[j].add_body(Eigen::Map<const Vec<D>>(x[i]), Eigen::Map<const Vec<D>>(v[i]), m, spin, inertia * r * r,
-                      Mat::Zero(), coupler::cell_center<D>(grid, coupler::cell_coords<D>(grid, cells[making[j]].cell)));
-  }
   sum_over_ranks<D>(carried);
   sum_over_ranks<D>(solid);
 
@@ -925,10 +910,15 @@ std::vector<double> FixHybridMPM::make_grains(const std::vector<coupler::RezoneC
     const auto c = coupler::cell_coords<D>(grid, cell.cell);
     for (const auto &g : coupler::template_candidates<D>(cell.cell, grid, tmpl, settings->grain_diameter)) {
       if (!(coupler::occupancy_bit<D>(grid, c, g.x) & cell.occupancy)) continue;    // no material there
-      bool in_box = true;
-      for (int a = 0; a < D; ++a)
-        in_box = in_box && g.x[a] - g.radius >= domain->boxlo[a] && g.x[a] + g.radius <= domain->boxhi[a];
-      if (!in_box) continue;
+      // inside the continuum's container (where its points are held; a silo's floor blocks lie
+      // outside it, and a grain made inside a wall would be shot out by the wall's contact)
+      bool inside = true;
+      for (int a = 0; a < D; ++a) {
+        const double lo = container_given[2 * a] ? container_value[2 * a] : domain->boxlo[a];
+        const double hi = container_given[2 * a + 1] ? container_value[2 * a + 1] : domain->boxhi[a];
+        inside = inside && g.x[a] - g.radius >= lo && g.x[a] + g.radius <= hi;
+      }
+      if (!inside) continue;
       by_cell[cell.cell].emplace_back(j, candidates[j].size());
       candidates[j].push_back(g);
       largest = std::max(largest, g.radius);
@@ -944,29 +934,17 @@ std::vector<double> FixHybridMPM::make_grains(const std::vector<coupler::RezoneC
   for (int i = 0; i < nlocal; i++) {
     const Vec<D> xi = Eigen::Map<const Vec<D>>(x[i]);
     const int reach = static_cast<int>(std::ceil((atom->radius[i] + largest) / grid.dx));
-    const Eigen::Matrix<int, D, 1> ci = coupler::cell_of<D>(grid, xi);
-    int span = 1;
-    for (int a = 0; a < D; ++a) span *= 2 * reach + 1;
-    for (int o = 0; o < span; ++o) {
-      Eigen::Matrix<int, D, 1> cj;
-      bool on_grid = true;
-      for (int a = 0, r = o; a < D; ++a, r /= 2 * reach + 1) {
-        cj[a] = ci[a] + r % (2 * reach + 1) - reach;
-        on_grid = on_grid && cj[a] >= 0 && cj[a] < grid.dims[a] - 1;
-      }
-      if (!on_grid) continue;
-      const auto it = by_cell.find(coupler::cell_index<D>(grid, cj));
-      if (it == by_cell.end()) continue;
+    coupler::for_each_cell_within<D>(grid, coupler::cell_of<D>(grid, xi), reach, [&](std::uint64_t cell) {
+      const auto it = by_cell.find(cell);
+      if (it == by_cell.end()) return;
       for (const auto &[j, n] : it->second) {
         double &r = room[offset[j] + n];
         r = std::min(r, (candidates[j][n].x - xi).norm() - atom->radius[i]);
       }
-    }
+    });
   }
   MPI_Allreduce(room.data(), room_all.data(), static_cast<int>(room.size()), MPI_DOUBLE, MPI_MIN, world);
 
-  // each cell's new and old grains take the grains' share of its material
-  std::vector<coupler::RigidCorrection<D>> fixes(making.size());
   const double zmid = 0.5 * (domain->boxlo[2] + domain->boxhi[2]);
   for (std::size_t j = 0; j < making.size(); ++j) {
     const auto &cell = cells[making[j]];
@@ -979,7 +957,6 @@ std::vector<double> FixHybridMPM::make_grains(const std::vector<coupler::RezoneC
       g.radius = std::min(g.radius, fit);
       kept.push_back(g);
     }
-    if (kept.empty()) continue;    // the MPM process then corrects the old grains, or keeps the points
     coupler::CellMoments<D> material = cell.points;
     material.add(carried[j].moments);
     if (!(material.mass > 0)) continue;
@@ -988,17 +965,25 @@ std::vector<double> FixHybridMPM::make_grains(const std::vector<coupler::RezoneC
     const Vec<D> about = cell.points.mass > 0 ? Vec<D>(cell.points.first_moment() / cell.points.mass) : centre;
     const Vec<D> drift = cell.points.mass > 0 ? Vec<D>(cell.points.momentum() / cell.points.mass) : Vec<D>::Zero();
     const Mat gradient = Eigen::Map<const Mat>(cell.gradient);
+    // as many new grains as the material fills at their solid mass, nearest its centre first
+    // (the same order on every rank)
+    std::stable_sort(kept.begin(), kept.end(), [&](const auto &a, const auto &b) {
+      return (a.x - about).squaredNorm() < (b.x - about).squaredNorm();
+    });
     coupler::BodySums<D> bodies = solid[j];
+    std::size_t fitted = 0;
     for (auto &g : kept) {
       g.mass = density * coupler::grain_volume<D>(g.radius);
+      if (bodies.moments.mass + 0.5 * g.mass > material.mass) break;
       g.v = drift + gradient * (g.x - about);
       g.omega.setZero();
       bodies.add_body(g.x, g.v, g.mass, coupler::Spin<D>::Zero(), inertia * g.radius * g.radius, Mat::Zero(), centre);
+      ++fitted;
     }
+    kept.resize(fitted);
+    // made at their weight times their solid mass, with the affine field's velocity: the MPM
+    // process corrects them with the cell's old grains (their sums go with those)
     const double share = cell.grain_weight;
-    const coupler::RigidCorrection<D> fix = coupler::rigid_correction<D>(bodies, material.scaled(share), centre);
-    fixes[j] = fix;
-    made_in_cell[making[j]] = share;
     for (const auto &g : kept) {
       double coord[3] = {0.0, 0.0, zmid};
       for (int a = 0; a < D; ++a) coord[a] = g.x[a];
@@ -1009,33 +994,23 @@ std::vector<double> FixHybridMPM::make_grains(const std::vector<coupler::RezoneC
       const int n = atom->nlocal - 1;
       atom->mask[n] = new_grain_mask;
       atom->radius[n] = g.radius;
-      atom->rmass[n] = fix.mass_factor * g.mass;
-      const Vec<D> vn = g.v + fix.increment(g.x);
-      for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? vn[a] : 0.0, atom->omega[n][a] = 0.0;
-      if constexpr (D == 2) atom->omega[n][2] = fix.omega[0];
-      else
-        for (int a = 0; a < 3; a++) atom->omega[n][a] = fix.omega[a];
+      atom->rmass[n] = share * g.mass;
+      for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? g.v[a] : 0.0, atom->omega[n][a] = 0.0;
       modify->create_attribute(n);    // every fix's per-atom data (pair history, ours)
       weight[n] = share;
+      auto &sum = sums[making[j]];
+      sum.solid.moments.cell = sum.carried.moments.cell = cell.cell;
+      sum.solid.add_body(g.x, g.v, g.mass, coupler::Spin<D>::Zero(), inertia * g.radius * g.radius, Mat::Zero(), centre);
       made++;
     }
   }
-  // the old grains of those cells: the solid density, and the same correction
-  x = atom->x, v = atom->v, omega = atom->omega;
-  for (int i = 0; i < nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const std::int64_t j = slot_of_atom(i);
-    if (j < 0 || made_in_cell[making[j]] < 0) continue;
-    const coupler::RigidCorrection<D> &fix = fixes[j];
-    const Vec<D> dv = fix.increment(Eigen::Map<const Vec<D>>(x[i]));
-    for (int a = 0; a < D; ++a) v[i][a] += dv[a];
-    if constexpr (D == 2) omega[i][2] += fix.omega[0];
-    else
-      for (int a = 0; a < 3; a++) omega[i][a] += fix.omega[a];
-    atom->rmass[i] = fix.mass_factor * density * coupler::grain_volume<D>(atom->radius[i]);
-    weight[i] = cells[making[j]].grain_weight;
-  }
-  return made_in_cell;
+  return made;
+}
+
+double FixHybridMPM::solid_mass(int i) const
+{
+  const double r = atom->radius[i];
+  return settings->grain_density * (domain->dimension == 2 ? coupler::grain_volume<2>(r) : coupler::grain_volume<3>(r));
 }
 
 /* ----------------------------------------------------------------------
@@ -1126,7 +1101,7 @@ void FixHybridMPM::rezone(int source)
   for (std::size_t k = 0; k < cells.size(); ++k) slot.emplace(cells[k].cell, k);
   auto cell_of_atom = [&](int i) { return slot_of_cell_at<D>(grid, atom->x[i], slot); };
   const int nlocal_old = atom->nlocal;
-  std::map<std::size_t, coupler::BodySums<D>> sums;
+  std::map<std::size_t, coupler::GrainSums<D>> sums;
   {
     double **x = atom->x, **v = atom->v, **omega = atom->omega;
     double *rmass = atom->rmass, *radius = atom->radius;
@@ -1134,33 +1109,33 @@ void FixHybridMPM::rezone(int source)
       if (!(atom->mask[i] & groupbit)) continue;
       const std::int64_t k = cell_of_atom(i);
       if (k < 0) continue;
-      const double I = inertia * rmass[i] * radius[i] * radius[i];
-      coupler::Spin<D> spin;
-      if constexpr (D == 2) spin[0] = I * omega[i][2];
-      else spin = I * Eigen::Map<const Eigen::Vector3d>(omega[i]);
+      coupler::Spin<D> omega_i;
+      if constexpr (D == 2) omega_i[0] = omega[i][2];
+      else omega_i = Eigen::Map<const Eigen::Vector3d>(omega[i]);
       Eigen::Matrix<double, D, D> sv;
       const double *sa = &atom_stress[6 * i];    // xx yy zz xy xz yz
       if constexpr (D == 2) sv << sa[0], sa[3], sa[3], sa[1];
       else sv << sa[0], sa[3], sa[4], sa[3], sa[1], sa[5], sa[4], sa[5], sa[2];
       const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
+      const Vec<D> centre = coupler::cell_center<D>(grid, c), xi = Eigen::Map<const Vec<D>>(x[i]),
+                   vi = Eigen::Map<const Vec<D>>(v[i]);
+      const double e = inertia * radius[i] * radius[i], solid = solid_mass(i);
       auto &sum = sums[static_cast<std::size_t>(k)];
-      sum.moments.cell = cells[k].cell;
-      sum.add_body(Eigen::Map<const Vec<D>>(x[i]), Eigen::Map<const Vec<D>>(v[i]), rmass[i], spin,
-                   inertia * radius[i] * radius[i], sv, coupler::cell_center<D>(grid, c));
+      sum.carried.moments.cell = sum.solid.moments.cell = cells[k].cell;
+      sum.carried.add_body(xi, vi, rmass[i], rmass[i] * e * omega_i, e, sv, centre);
+      sum.solid.add_body(xi, vi, solid, solid * e * omega_i, e, Eigen::Matrix<double, D, D>::Zero(), centre);
     }
   }
-  std::vector<coupler::BodySums<D>> sum_list;
-  for (const auto &kv : sums) sum_list.push_back(kv.second);
 
-  // 3. enrichment (collective over the DEM ranks)
-  bigint made_local = 0;
-  const std::vector<double> made = make_grains<D>(cells, sums, made_local);
+  // 3. enrichment (collective over the DEM ranks): new grains, their sums with the old ones'
+  const bigint made_local = make_grains<D>(cells, sums);
 
   // 4. the MPM process answers what the grains of each cell become
   std::vector<coupler::GrainCorrection<D>> corrections;
   try {
+    std::vector<coupler::GrainSums<D>> sum_list;
+    for (const auto &kv : sums) sum_list.push_back(kv.second);
     link->send_array(0, coupler::kTagGrainSums, sum_list, "the grain sums" + at);
-    if (comm->me == 0) link->send_array(0, coupler::kTagCreated, made, "the cells with new grains" + at);
     const coupler::Message m =
         link->receive(0, {coupler::kTagCorrections, coupler::kTagStepAck}, "the grain corrections" + at);
     if (m.tag == coupler::kTagStepAck) mpm_error(m);
@@ -1176,9 +1151,9 @@ void FixHybridMPM::rezone(int source)
   double *rmass = atom->rmass;
   std::map<std::uint64_t, const coupler::GrainCorrection<D> *> correction_of;
   for (const auto &gc : corrections) correction_of[gc.cell] = &gc;
-  std::vector<char> remove(nlocal_old, 0);
+  std::vector<char> remove(atom->nlocal, 0);
   bigint hybrid_local = 0;
-  for (int i = 0; i < nlocal_old; i++) {
+  for (int i = 0; i < atom->nlocal; i++) {
     if (!(atom->mask[i] & groupbit)) continue;
     const std::int64_t k = cell_of_atom(i);
     if (k < 0) continue;
@@ -1199,13 +1174,13 @@ void FixHybridMPM::rezone(int source)
     if constexpr (D == 2) omega[i][2] += fix.omega[0];
     else
       for (int a = 0; a < 3; a++) omega[i][a] += fix.omega[a];
-    rmass[i] *= gc.mass_factor;
+    rmass[i] = gc.mass_factor * solid_mass(i);    // the correction scales the solid sums
     weight[i] = gc.weight;
     if (gc.weight < 1.0) hybrid_local++;
   }
   bigint deleted_local = 0;
   AtomVec *avec = atom->avec;
-  for (int i = nlocal_old - 1; i >= 0; i--)    // as fix evaporate: the last atom fills the gap
+  for (int i = static_cast<int>(remove.size()) - 1; i >= 0; i--)    // as fix evaporate: the last atom fills the gap
     if (remove[i]) {
       avec->copy(atom->nlocal - 1, i, 1);
       atom->nlocal--;
@@ -1235,7 +1210,7 @@ void FixHybridMPM::rezone(int source)
   double drift[2] = {-BIG, 0.0}, drift_all[2];    // -lightest, heaviest
   for (int i = 0; i < atom->nlocal; i++) {
     if (!(atom->mask[i] & groupbit)) continue;
-    const double f = atom->rmass[i] / (weight[i] * settings->grain_density * coupler::grain_volume<D>(atom->radius[i]));
+    const double f = atom->rmass[i] / (weight[i] * solid_mass(i));
     drift[0] = std::max(drift[0], -f), drift[1] = std::max(drift[1], f);
   }
   MPI_Allreduce(drift, drift_all, 2, MPI_DOUBLE, MPI_MAX, world);
@@ -1250,12 +1225,12 @@ void FixHybridMPM::rezone(int source)
   if (comm->me == 0)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: step {}: {} grains became {} material points, {} grains are "
                                     "hybrid (weight {}), {} grains made from points; {} cells moved; grid cells "
-                                    "in the box: {} continuum, {} hybrid, {} discrete; carried mass / solid mass "
-                                    "{:.3g} to {:.3g}\n",
+                                    "in the box: {} continuum, {} hybrid, {} discrete; {} cells gave their rest of material "
+                                    "to nearby points, {} kept it; carried mass / solid mass {:.3g} to {:.3g}\n",
                                     update->ntimestep, all[0], ack.points_made, all[2], settings->grain_weight, all[1],
                                     ack.moved_cells, ack.zone_cells[coupler::kContinuum],
                                     ack.zone_cells[coupler::kHybrid], ack.zone_cells[coupler::kDiscrete],
-                                    -drift_all[0], drift_all[1]));
+                                    ack.rests_moved, ack.rests_kept, -drift_all[0], drift_all[1]));
   // what the rezone did to the totals of grains plus points (exact up to round-off)
   if (comm->me == 0) {
     double after[7] = {ack.mass, ack.momentum[0], ack.momentum[1], ack.momentum[2], ack.angular[0], ack.angular[1],

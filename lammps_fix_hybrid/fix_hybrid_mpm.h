@@ -35,6 +35,7 @@ template <int D> class GrainTransfer;
 template <int D> struct PackingTemplate;
 template <int D> struct RezoneCell;
 template <int D> struct BodySums;
+template <int D> struct GrainSums;
 struct CellGrains;
 struct OracleSettings;
 }
@@ -103,6 +104,9 @@ class FixHybridMPM : public Fix {
   bigint last_output_step;                // step of the last output frame
 
   double *weight;                         // per-atom share of its material a grain carries
+  // a grain's mass at weight 1 from its size and the grains' density (rezones give every grain
+  // of a moving cell its weight times this)
+  double solid_mass(int i) const;
   double **support;                       // per-atom acceleration from the continuum until the next exchange
   std::vector<int> supported;             // local atoms with a support acceleration (valid until reneighboring)
   std::unique_ptr<coupler::GrainTransfer<2>> transfer2;    // grain <-> node transfers (2D runs)
@@ -135,9 +139,8 @@ class FixHybridMPM : public Fix {
   void connect();
   template <int D> void rezone(int source);
   template <int D> std::vector<coupler::CellGrains> cell_grains();
-  template <int D> std::vector<double> make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
-                                                        const std::map<std::size_t, coupler::BodySums<D>> &old_sums,
-                                                        bigint &made);
+  template <int D> bigint make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
+                                      std::map<std::size_t, coupler::GrainSums<D>> &sums);
   template <int D> void sum_over_ranks(std::vector<coupler::BodySums<D>> &sums);
   template <int D> const coupler::PackingTemplate<D> &packing_template();
   void schedule_rezone(int source);

@@ -15,6 +15,8 @@ mu = 0 the same silo discharges at 1.65 x Beverloo, outside the factor tested he
 """
 from __future__ import annotations
 
+import os
+import re
 import shutil
 
 import pytest
@@ -94,39 +96,69 @@ def test_rate_matches_2d_beverloo(silo):
 
 # ---- the hybrid twin: adaptive zones (input_decks/silo/hybrid_2d.lmp) ----------------------
 
-def test_hybrid_silo_discharges_only_grains(silo, silo_dir, hybrid_programs):
-    """The same settled silo discharged coupled: at the opening the oracle makes its deep
-    interior continuum (grains stay along the walls, the floor and the free surface); as the
-    material flows down, grains appear from the points where the zones turn discrete. Only
-    grains leave through the orifice: grains plus points (the fix's total) plus the grains
-    that left stay the initial mass. The discharge rate is measured against the pure DEM
-    run.s: within 25 % here (measured -17 %); the 10 % of the adaptive-zones issue is not
-    met yet: grains made from points carry more than their solid mass (up to a few times,
-    where grains and points of hybrid cells overlapped), so the mass rate and the number rate
-    of the grains differ from the DEM's in opposite directions."""
-    import os
-    import re
+SEEDS = (12345, 2, 3)        # three packings: the DEM's own rate varies by ~9 % between them
+RATE_TOLERANCE = 0.10        # the adaptive-zones issue: the mean hybrid rate within 10 % of the DEM's
+SEED_TOLERANCE = 0.20        # and each packing's within 20 % (its DEM twin's spread is ~5 %)
+REZONE = re.compile(r"step \d+: (\d+) grains became (\d+) material points, \d+ grains are hybrid \(weight [\d.]+\), "
+                    r"(\d+) grains made from points; \d+ cells moved; grid cells in the box: (\d+) continuum, "
+                    r"(\d+) hybrid, (\d+) discrete; (\d+) cells gave their rest of material to nearby points, "
+                    r"(\d+) kept it; carried mass / solid mass (\S+) to (\S+)")
+
+
+@pytest.fixture(scope="module")
+def silo_pairs(silo, silo_dir, hybrid_programs):
+    """Per packing, the pure DEM discharge and its hybrid twin from the same settled silo."""
     from conftest import BUILD
     os.environ.setdefault("HYBRID_BUILD_DIR", str(BUILD))
     os.environ["OMP_NUM_THREADS"] = "1"
-    hyb = run_dem_silo(width=WIDTH, height=HEIGHT, orifice=ORIFICE, d=D, np_=2, out=silo_dir / "hybrid",
-                       cache_dir=silo_dir / "cache", tdis=0.8, fstop=0.6, timeout=900,
-                       extra_vars={"mu": 0.5, "e": 0.5}, hybrid_vars={})
-    print(hyb.summary())
-    assert not hyb.prepared  # the DEM run's settled silo
-    log = (silo_dir / "hybrid" / "log.lammps").read_text()
-    assert "Lost atoms" not in log
-    rezones = [tuple(map(int, m)) for m in re.findall(
-        r"step \d+: (\d+) grains became (\d+) material points, \d+ grains are hybrid \(weight [\d.]+\), "
-        r"(\d+) grains made from points", log)]
-    assert rezones[0][0] > 100 and rezones[0][1] > 100      # the interior became continuum
-    assert sum(r[2] for r in rezones[1:]) > 20              # grains appeared from the points
-    # the thermo row at the end of the last run comes before the last deletion of the grains
-    # that fell out: grains + points then, plus what was deleted before it = initial mass
-    rows = [ln.split() for ln in log.splitlines() if re.match(r"^\s*\d+\s+[\d.e+-]+\s+\d+\s+\d+\s", ln)]
-    total_end = float(rows[-1][7])
-    assert total_end + hyb.m_del[-2] == pytest.approx(hyb.mass0, rel=1e-9)
-    assert hyb.m_fall[-1] + hyb.m_del[-1] >= 0.5 * hyb.mass0
-    error = hyb.rate / silo.rate - 1
-    print(f"hybrid discharge rate {hyb.rate:.3f} kg/s/m against DEM {silo.rate:.3f}: {error:+.1%}")
-    assert abs(error) < 0.25
+    common = dict(width=WIDTH, height=HEIGHT, orifice=ORIFICE, d=D, cache_dir=silo_dir / "cache", tdis=0.8,
+                  fstop=0.6, timeout=900, extra_vars={"mu": 0.5, "e": 0.5})
+    pairs = {}
+    for seed in SEEDS:
+        dem = silo if seed == 12345 else run_dem_silo(np_=2, seed=seed, out=silo_dir / f"dem_{seed}", **common)
+        hyb = run_dem_silo(np_=2, seed=seed, out=silo_dir / f"hybrid_{seed}", hybrid_vars={}, **common)
+        print(f"seed {seed}:\n{hyb.summary()}")
+        pairs[seed] = (dem, hyb, (silo_dir / f"hybrid_{seed}" / "log.lammps").read_text())
+    return pairs
+
+
+def test_hybrid_silo_discharges_only_grains_made_from_the_continuum(silo_pairs):
+    """At the opening the oracle makes the interior of the silo continuum, above the discrete
+    region over the orifice (grains stay along the walls, the floor, the free surface and over
+    the orifice); as the material flows down, grains are made from the points where the zones
+    turn discrete. Only grains leave: grains plus points (the fix's total) plus the grains that
+    left stay the initial mass. Every grain carries its weight times its solid mass, within the
+    bounds of a rezone that found no points near to take a cell's rest (kHeaviestKept = 2 for
+    a surplus; measured 0.84 to 2 at the end, when the continuum is gone)."""
+    for seed, (dem, hyb, log) in silo_pairs.items():
+        assert not hyb.prepared  # the DEM run's settled silo
+        assert "Lost atoms" not in log
+        rezones = [m.groups() for m in REZONE.finditer(log)]
+        first, later = rezones[0], rezones[1:]
+        assert int(first[0]) > 50 and int(first[1]) > 100, first      # the interior became continuum
+        assert int(first[3]) > 0, first                                  # continuum cells at the start
+        assert sum(int(r[2]) for r in later) > 20, seed                  # grains appeared from the points
+        assert sum(int(r[6]) for r in later) > 20, seed                  # surpluses went to nearby points
+        lightest, heaviest = float(rezones[-1][8]), float(rezones[-1][9])
+        assert 0.5 < lightest <= 1.0 + 1e-9 and 1.0 <= heaviest <= 2.0 + 1e-9, rezones[-1]
+        # the thermo row at the end of the last run comes before the last deletion of the
+        # grains that fell out: grains + points then, plus what was deleted before it = initial mass
+        rows = [ln.split() for ln in log.splitlines() if re.match(r"^\s*\d+\s+[\d.e+-]+\s+\d+\s+\d+\s", ln)]
+        total_end = float(rows[-1][7])
+        assert total_end + hyb.m_del[-2] == pytest.approx(hyb.mass0, rel=1e-9)
+        assert hyb.m_fall[-1] + hyb.m_del[-1] >= 0.5 * hyb.mass0
+
+
+def test_hybrid_silo_discharge_rate_matches_pure_dem(silo_pairs):
+    """The discharge rate of the hybrid twin against pure DEM from the same packing, over three
+    packings. Measured: -3.1, -6.6, 0.0 % (mean -3.3 %); the DEM rates were 8.87, 9.65 and
+    8.93 kg/s/m."""
+    errors = {}
+    for seed, (dem, hyb, _) in silo_pairs.items():
+        errors[seed] = hyb.rate / dem.rate - 1
+        print(f"seed {seed}: hybrid {hyb.rate:.3f} kg/s/m against DEM {dem.rate:.3f}: {errors[seed]:+.1%}")
+    mean_dem = sum(p[0].rate for p in silo_pairs.values()) / len(SEEDS)
+    mean_hyb = sum(p[1].rate for p in silo_pairs.values()) / len(SEEDS)
+    print(f"mean: hybrid {mean_hyb:.3f} against DEM {mean_dem:.3f}: {mean_hyb / mean_dem - 1:+.1%}")
+    assert abs(mean_hyb / mean_dem - 1) < RATE_TOLERANCE
+    assert all(abs(e) < SEED_TOLERANCE for e in errors.values()), errors

@@ -186,7 +186,6 @@ const char* tag_name(int tag) {
     case kTagVolumes: return "CellVolumes";
     case kTagRezoneCells: return "RezoneCells";
     case kTagGrainSums: return "GrainSums";
-    case kTagCreated: return "GrainsMade";
     case kTagCorrections: return "GrainCorrections";
     case kTagOracle: return "OracleSettings";
     case kTagSupport: return "SupportForce";

@@ -157,11 +157,10 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
     link.send_array(r, coupler::kTagZones, continuum->zones(), "the new zone map" + at);
     link.send_array(r, coupler::kTagRezoneCells, cells, "the cells to rezone" + at);
   }
-  const auto grains = receive_from_all<coupler::BodySums<D>>(link, coupler::kTagGrainSums, "the grain sums" + at);
-  const auto made = link.receive(0, {coupler::kTagCreated}, "the cells with new grains" + at).as_array<double>();
+  const auto grains = receive_from_all<coupler::GrainSums<D>>(link, coupler::kTagGrainSums, "the grain sums" + at);
   std::vector<coupler::GrainCorrection<D>> corrections;
   try {
-    corrections = continuum->complete_rezone(grains, made);
+    corrections = continuum->complete_rezone(grains);
   } catch (const UserError& e) {
     return fail(std::string("the rezone failed") + at + ": " + e.what());
   }
@@ -176,7 +175,8 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
                " cells (" + std::to_string(ack.points_made) + " points made, " + std::to_string(ack.points_removed) +
                " removed); cells continuum/hybrid/discrete " + std::to_string(ack.zone_cells[coupler::kContinuum]) +
                "/" + std::to_string(ack.zone_cells[coupler::kHybrid]) + "/" +
-               std::to_string(ack.zone_cells[coupler::kDiscrete]));
+               std::to_string(ack.zone_cells[coupler::kDiscrete]) + "; rests to nearby points " +
+               std::to_string(ack.rests_moved) + ", kept " + std::to_string(ack.rests_kept));
   ack_all(link, ack, "the rezone's acknowledgement" + at);
   return 0;
 }

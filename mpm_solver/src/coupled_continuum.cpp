@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <sstream>
 
@@ -182,16 +184,13 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     m.points.moments.cell = c;
     moving_.push_back(std::move(m));
   }
-  const double dx = geometry.dx;
   for (std::size_t p = 0; p < pts.size(); ++p) {
     const std::int64_t k = slot[point_cell[p]];
     if (k < 0) continue;
     MovingCell& m = moving_[static_cast<std::size_t>(k)];
     m.members.push_back(p);
     const auto c = coupler::cell_coords<D>(geometry, point_cell[p]);
-    const coupler::Spin<D> spin = (pts.mass[p] * dx * dx / coupler::kQuadraticInverseInertia) * coupler::axial<D>(pts.C[p]);
-    m.points.add_body(pts.x[p], pts.v[p], pts.mass[p], spin, dx * dx / 2, Mat<D>(pts.stress[p] * pts.volume(p)),
-                      coupler::cell_center<D>(geometry, c));
+    add_point_body(m.points, p, coupler::cell_center<D>(geometry, c));
     Eigen::Map<Mat<D>>(m.plan.gradient) += pts.mass[p] * pts.C[p];
     m.material_volume += pts.volume(p) / std::max(static_cast<double>(pts.weight[p]), 1e-6);
     m.plan.occupancy |= coupler::occupancy_of_point<D>(geometry, c, pts.x[p], 2.0 * std::pow(pts.volume(p), 1.0 / D));
@@ -200,13 +199,14 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   plans.reserve(moving_.size());
   for (MovingCell& m : moving_) {
     if (m.points.moments.mass > 0) Eigen::Map<Mat<D>>(m.plan.gradient) /= m.points.moments.mass;
-    // New grains where the zone wants grains and the cell's grains are too few for their
-    // share: they would have to be heavier than kHeaviestGrains times their solid mass (and
-    // a few stray grains would spin fast to take the cell's angular momentum).
+    // New grains where the zone wants grains and the cell's material is more than
+    // kHeaviestGrains times its grains' solid mass (a hybrid cell's points take some surplus),
+    // and wherever a discrete cell holds points (it should hold none).
     const double share = grain_share(m.plan.zone);
-    const double needed = share * (grain_mass[m.plan.cell] + m.points.moments.mass);
+    const double material = grain_mass[m.plan.cell] + m.points.moments.mass;
     m.grain_solid_mass = cs.grain_density * volume[m.plan.cell];
-    m.plan.make_grains = share > 0 && !m.members.empty() && needed > coupler::kHeaviestGrains * share * m.grain_solid_mass;
+    m.plan.make_grains = share > 0 && !m.members.empty() &&
+                         (m.plan.zone == coupler::kDiscrete || material > coupler::kHeaviestGrains * m.grain_solid_mass);
     m.plan.points = m.points.moments;
     plans.push_back(m.plan);
   }
@@ -224,93 +224,205 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
 }
 
 template <int D>
+void CoupledContinuum<D>::add_point_body(coupler::BodySums<D>& sums, std::size_t p, const Vec<D>& reference) const {
+  const auto& pts = solver_.points();
+  const double dx = solver_.grid().dx;
+  const coupler::Spin<D> spin = (pts.mass[p] * dx * dx / coupler::kQuadraticInverseInertia) * coupler::axial<D>(pts.C[p]);
+  sums.add_body(pts.x[p], pts.v[p], pts.mass[p], spin, dx * dx / 2, Mat<D>(pts.stress[p] * pts.volume(p)), reference);
+}
+
+template <int D>
+void CoupledContinuum<D>::correct_points(const std::vector<std::size_t>& members, const coupler::RigidCorrection<D>& fix) {
+  auto& pts = solver_.points();
+  const Mat<D> spin = coupler::skew<D>(fix.omega);
+  for (std::size_t p : members) {
+    pts.mass[p] *= fix.mass_factor;
+    pts.volume0[p] *= fix.mass_factor;  // same density, same deformation state
+    pts.v[p] += fix.increment(pts.x[p]);
+    pts.C[p] += spin;
+  }
+}
+
+template <int D>
 std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
-    const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<double>& made) {
+    const std::vector<std::vector<coupler::GrainSums<D>>>& grains) {
   const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(solver_.grid());
-  if (made.size() != moving_.size())
-    throw UserError("the DEM side reported new grains for " + std::to_string(made.size()) + " cells, " +
-                    std::to_string(moving_.size()) + " were planned");
   std::map<std::uint64_t, std::size_t> slot;
   for (std::size_t k = 0; k < moving_.size(); ++k) slot.emplace(moving_[k].plan.cell, k);
-  std::vector<coupler::BodySums<D>> sums(moving_.size());
+  std::vector<coupler::BodySums<D>> carried(moving_.size()), solid(moving_.size());
   for (const auto& list : grains)  // rank order: deterministic
     for (const auto& g : list) {
-      const auto it = slot.find(g.moments.cell);
+      const auto it = slot.find(g.carried.moments.cell);
       if (it == slot.end())
-        throw UserError("a DEM rank sent grain sums for cell " + std::to_string(g.moments.cell) +
+        throw UserError("a DEM rank sent grain sums for cell " + std::to_string(g.carried.moments.cell) +
                         ", which is not being rezoned");
-      sums[it->second].add(g);
+      carried[it->second].add(g.carried);
+      solid[it->second].add(g.solid);
     }
 
-  auto& pts = solver_.points();
-  std::vector<char> remove(pts.size(), 0);
-  std::vector<coupler::NewPoint<D>> new_points;
-  std::vector<float> new_weights;
-  std::vector<coupler::GrainCorrection<D>> corrections;
-  moved_cells_ = static_cast<std::int64_t>(moving_.size());
-  points_made_ = points_removed_ = 0;
+  // 1. How each cell's material splits, as fractions of it: its grains, each at its new weight
+  // times its solid mass (never heavier or lighter than their density allows), its points, and
+  // a rest for the points of the neighbouring cells where the cell keeps none (discrete) or too
+  // few for what the grains leave.
+  struct Split {
+    double grains = 0, points = 0, rest = 0;
+  };
+  std::vector<Split> split(moving_.size());
+  std::vector<coupler::CellMoments<D>> total(moving_.size());
   for (std::size_t k = 0; k < moving_.size(); ++k) {
     const MovingCell& m = moving_[k];
-    const coupler::BodySums<D>& G = sums[k];
+    total[k] = carried[k].moments;
+    total[k].add(m.points.moments);
+    total[k].cell = m.plan.cell;
+    if (!(total[k].mass > 0)) continue;
+    const double share = grain_share(m.plan.zone), point_share = 1.0 - share;
+    Split& s = split[k];
+    if (share > 0 && solid[k].moments.mass > 0) s.grains = share * solid[k].moments.mass / total[k].mass;
+    s.points = point_share > 0 && 1.0 - s.grains >= 0.5 * point_share ? 1.0 - s.grains : point_share;
+    s.rest = 1.0 - s.grains - s.points;
+  }
+
+  constexpr double kRoundOff = 1e-12;      // rests below this fraction of a cell's material are round-off
+  constexpr double kSmallestPart = 1e-6;   // smallest fraction of a cell's material grains or points take
+  for (Split& s : split) {
+    if (std::abs(s.rest) < kRoundOff) {  // round-off: to the larger part, never into a zero one
+      (s.grains > s.points ? s.grains : s.points) += s.rest;
+      s.rest = 0;
+    }
+  }
+
+  // 2. The cells' points: corrected onto their part, renewed (too few), made, or removed.
+  auto& pts = solver_.points();
+  std::vector<char> remove(pts.size(), 0);
+  moved_cells_ = static_cast<std::int64_t>(moving_.size());
+  points_made_ = points_removed_ = 0;
+  std::vector<std::vector<std::size_t>> own(moving_.size());  // the points each cell keeps or made
+  auto make_points = [&](std::size_t k, double part, float label) {
+    const MovingCell& m = moving_[k];
+    const Vec<D> centre = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, m.plan.cell));
+    coupler::BodySums<D> material = carried[k];  // new points move with the material's affine field
+    material.add(m.points);
+    for (const auto& p : coupler::points_from_moments<D>(total[k].scaled(part), geometry,
+                                                         hello_.continuum.points_per_axis, part,
+                                                         material.velocity_gradient(centre))) {
+      solver_.add_point(p.x, p.v, p.C, p.mass, p.volume, p.stress);
+      pts.weight.back() = label;
+      own[k].push_back(pts.size() - 1);
+      remove.push_back(0);
+      ++points_made_;
+    }
+  };
+  // the points' weight label is their zone's share (1 for points a discrete cell keeps)
+  auto label_of = [&](const MovingCell& m) {
+    const double nominal = 1.0 - grain_share(m.plan.zone);
+    return static_cast<float>(nominal > 0 ? nominal : 1.0);
+  };
+  for (std::size_t k = 0; k < moving_.size(); ++k) {
+    const MovingCell& m = moving_[k];
+    Split& s = split[k];
+    if (s.points > 0 && s.points < kSmallestPart && solid[k].moments.mass > 0) s.grains += s.points, s.points = 0;
     const coupler::BodySums<D>& P = m.points;
     const Vec<D> centre = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, m.plan.cell));
-    coupler::CellMoments<D> total = G.moments;
-    total.add(P.moments);
-    total.cell = m.plan.cell;
-    double share = grain_share(m.plan.zone);
-    const bool grains_done = m.plan.make_grains && made[k] >= 0;  // the DEM side gave the grains their share
-    if (grains_done) share = made[k];
-    else if (m.plan.make_grains && !(G.moments.mass > 0)) share = 0;  // no grain fitted: points keep it all
-    if (G.moments.mass > 0 && !grains_done) {
-      coupler::GrainCorrection<D> gc;
-      gc.cell = m.plan.cell;
-      gc.weight = m.plan.grain_weight;
-      if (share <= 0) gc.remove = 1;
-      else {
-        const auto fix = coupler::rigid_correction<D>(G, total.scaled(share), centre);
-        gc.mass_factor = fix.mass_factor;
-        for (int a = 0; a < D; ++a) gc.velocity[a] = fix.velocity[a], gc.centre[a] = fix.centre[a];
-        for (int a = 0; a < fix.omega.size(); ++a) gc.omega[a] = fix.omega[a];
-      }
-      corrections.push_back(gc);
-    }
-    const double point_share = 1.0 - share;
-    // Points carrying less than half their share are renewed, as stray grains are (above).
-    const bool thin = P.moments.mass > 0 && P.moments.mass < 0.5 * point_share * total.mass;
-    if (P.moments.mass > 0 && (point_share <= 0 || thin)) {
+    // Points carrying less than half their part are renewed, as stray grains are (above).
+    const bool thin = P.moments.mass > 0 && P.moments.mass < 0.5 * s.points * total[k].mass;
+    if (P.moments.mass > 0 && (s.points <= 0 || thin)) {
       for (std::size_t p : m.members) remove[p] = 1;
       points_removed_ += static_cast<std::int64_t>(m.members.size());
     }
+    if (!(s.points > 0)) continue;
     if (P.moments.mass > 0 && !thin) {
-      if (point_share > 0) {
-        const auto fix = coupler::rigid_correction<D>(P, total.scaled(point_share), centre);
-        const Mat<D> spin = coupler::skew<D>(fix.omega);
-        for (std::size_t p : m.members) {
-          pts.mass[p] *= fix.mass_factor;
-          pts.volume0[p] *= fix.mass_factor;  // same density, same deformation state
-          pts.v[p] += fix.increment(pts.x[p]);
-          pts.C[p] += spin;
-          pts.weight[p] = static_cast<float>(point_share);
-        }
-      }
-    } else if (point_share > 0 && total.mass > 0) {
-      coupler::BodySums<D> material = G;  // new points move with the material's affine field
-      material.add(P);
-      for (const auto& p : coupler::points_from_moments<D>(total.scaled(point_share), geometry,
-                                                           hello_.continuum.points_per_axis, point_share,
-                                                           material.velocity_gradient(centre))) {
-        new_points.push_back(p);
-        new_weights.push_back(static_cast<float>(point_share));
-      }
+      correct_points(m.members, coupler::rigid_correction<D>(P, total[k].scaled(s.points), centre));
+      for (std::size_t p : m.members) pts.weight[p] = label_of(m);
+      own[k] = m.members;
+    } else if (total[k].mass > 0) {
+      make_points(k, s.points, label_of(m));
     }
   }
-  remove_points(pts, remove);
-  for (std::size_t i = 0; i < new_points.size(); ++i) {
-    const auto& p = new_points[i];
-    solver_.add_point(p.x, p.v, p.C, p.mass, p.volume, p.stress);
-    pts.weight.back() = new_weights[i];
+
+  // 3. The rests go to the surviving points of the nearest cells that stay continuum or hybrid
+  // (one rigid correction each: exact): the cells within the smallest reach, up to kRestReach,
+  // whose points carry at least kRestCarriers times the rest (their masses change by at most
+  // 1/2; the cells around the rest keep the correction's rotation small). With no such points
+  // near, the cell keeps its rest: its grains take a deficit, and a surplus up to kHeaviestKept
+  // times their solid share (by less than half a grain's where new grains were made to fit),
+  // its points the remainder (a discrete cell's then wait there for room for grains).
+  constexpr int kRestReach = 3;
+  constexpr double kRestCarriers = 2.0;
+  std::map<std::uint64_t, std::vector<std::size_t>> carriers;  // cell -> its points that can take a rest
+  for (std::size_t p = 0; p < pts.size(); ++p) {
+    if (remove[p]) continue;
+    const std::uint64_t c = coupler::cell_index<D>(geometry, coupler::cell_of<D>(geometry, pts.x[p]));
+    if (zones_[c] != coupler::kDiscrete) carriers[c].push_back(p);
   }
-  points_made_ = static_cast<std::int64_t>(new_points.size());
+  rest_moved_ = rest_kept_ = 0;
+  for (std::size_t k = 0; k < moving_.size(); ++k) {
+    Split& s = split[k];
+    if (s.rest == 0) continue;
+    const coupler::CellMoments<D> rest = total[k].scaled(s.rest);
+    const auto c = coupler::cell_coords<D>(geometry, moving_[k].plan.cell);
+    const Vec<D> centre = coupler::cell_center<D>(geometry, c);
+    auto give = [&](const std::vector<std::size_t>& members, const coupler::CellMoments<D>& part) {
+      coupler::BodySums<D> now;
+      for (std::size_t p : members) add_point_body(now, p, centre);
+      coupler::CellMoments<D> target = now.moments;
+      target.add(part);
+      correct_points(members, coupler::rigid_correction<D>(now, target, centre));
+    };
+    std::vector<std::size_t> members;
+    double mass = 0;
+    const double needed = kRestCarriers * std::abs(rest.mass);
+    for (int reach = 1; reach <= kRestReach && !(mass >= needed); ++reach) {
+      members.clear();
+      mass = 0;
+      coupler::for_each_cell_within<D>(geometry, c, reach, [&](std::uint64_t cell) {
+        const auto it = carriers.find(cell);
+        if (it == carriers.end()) return;
+        for (std::size_t p : it->second) members.push_back(p), mass += pts.mass[p];
+      });
+    }
+    if (mass >= needed) {
+      give(members, rest);
+      ++rest_moved_;
+    } else {
+      ++rest_kept_;
+      // the grains up to kHeaviestKept times their solid share, the points the remainder
+      const double share = grain_share(moving_[k].plan.zone);
+      const double most = share * coupler::kHeaviestKept * solid[k].moments.mass / total[k].mass;
+      const double to_grains = solid[k].moments.mass > 0 ? std::min(s.rest, std::max(0.0, most - s.grains)) : 0.0;
+      s.grains += to_grains;
+      const double remainder = s.rest - to_grains;
+      if (remainder > kRoundOff) {
+        const coupler::CellMoments<D> left = total[k].scaled(remainder);
+        double own_mass = 0;
+        for (std::size_t p : own[k]) own_mass += pts.mass[p];
+        if (own_mass >= 0.5 * left.mass) give(own[k], left);
+        else make_points(k, remainder, 1.0f);
+      } else {
+        s.grains += remainder;
+      }
+    }
+    s.rest = 0;
+  }
+
+  // 4. What the grains of each cell become.
+  std::vector<coupler::GrainCorrection<D>> corrections;
+  for (std::size_t k = 0; k < moving_.size(); ++k) {
+    const MovingCell& m = moving_[k];
+    if (!(solid[k].moments.mass > 0)) continue;
+    const Vec<D> centre = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, m.plan.cell));
+    coupler::GrainCorrection<D> gc;
+    gc.cell = m.plan.cell;
+    gc.weight = m.plan.grain_weight;
+    if (split[k].grains <= 0) gc.remove = 1;
+    else {
+      const auto fix = coupler::rigid_correction<D>(solid[k], total[k].scaled(split[k].grains), centre);
+      gc.mass_factor = fix.mass_factor;
+      for (int a = 0; a < D; ++a) gc.velocity[a] = fix.velocity[a], gc.centre[a] = fix.centre[a];
+      for (int a = 0; a < fix.omega.size(); ++a) gc.omega[a] = fix.omega[a];
+    }
+    corrections.push_back(gc);
+  }
+  remove_points(pts, remove);
   solver_.sort_points_by_cell();
   moving_.clear();
   return corrections;
@@ -500,6 +612,8 @@ coupler::StepAck CoupledContinuum<D>::ack(std::int64_t step, double mass, const 
   a.moved_cells = moved_cells_;
   a.points_made = points_made_;
   a.points_removed = points_removed_;
+  a.rests_moved = rest_moved_;
+  a.rests_kept = rest_kept_;
   a.before[0] = before_.mass;
   for (int d = 0; d < 3; ++d) a.before[1 + d] = before_.momentum[d], a.before[4 + d] = before_.angular[d];
   if constexpr (D == 2) a.angular[2] = angular[0];

@@ -166,11 +166,15 @@ static_assert(std::is_trivially_copyable_v<CellMoments<2>> && std::is_trivially_
 //                                                  -> J w = L_t - f L - X_c x M_t a.
 // For points "spin += w" is "C += skew(w)" (axial(skew(w)) = 2 w, APIC spin m dx^2/4 axial(C)).
 
-/// A rezone makes new grains beside a cell's grains that would otherwise carry more than this
-/// times their share of their solid mass. Grains and points of a hybrid cell can overlap in
-/// space (the agreement aligns their velocities, not their positions), so a cell may hold
-/// more material than its grains can at their density.
+/// A rezone makes new grains in a hybrid cell whose material (grains' and points' mass) is more
+/// than this times its grains' solid mass. Grains and points of a hybrid cell can overlap in
+/// space (the agreement aligns their velocities, not their positions), so a cell may hold more
+/// material than its grains; its points take a smaller surplus.
 inline constexpr double kHeaviestGrains = 1.2;
+
+/// The heaviest a rezone makes grains, as a multiple of their solid share, where a cell's surplus
+/// of material finds no points near to take it (the continuum is nearly gone).
+inline constexpr double kHeaviestKept = 2.0;
 
 /// The mass-weighted least-squares velocity gradient G of bodies, minimising
 /// sum m |v - V - G (x - X_c)|^2, from additive sums: mass M, sum m x, sum m v, and about
@@ -318,6 +322,23 @@ Eigen::Matrix<int, D, 1> cell_coords(const GridGeometry<D>& grid, std::size_t k)
     k /= n;
   }
   return c;
+}
+/// Calls f(flat cell index) for every cell within `reach` cells of cell c along each axis
+/// (c included), clipped to the grid.
+template <int D, class F>
+void for_each_cell_within(const GridGeometry<D>& grid, const Eigen::Matrix<int, D, 1>& c, int reach, F&& f) {
+  const int side = 2 * reach + 1;
+  int span = 1;
+  for (int a = 0; a < D; ++a) span *= side;
+  for (int o = 0; o < span; ++o) {
+    Eigen::Matrix<int, D, 1> cj;
+    bool on_grid = true;
+    for (int a = 0, r = o; a < D; ++a, r /= side) {
+      cj[a] = c[a] + r % side - reach;
+      on_grid = on_grid && cj[a] >= 0 && cj[a] < grid.dims[a] - 1;
+    }
+    if (on_grid) f(cell_index<D>(grid, cj));
+  }
 }
 template <int D>
 Eigen::Matrix<double, D, 1> cell_center(const GridGeometry<D>& grid, const Eigen::Matrix<int, D, 1>& c) {

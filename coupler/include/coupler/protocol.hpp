@@ -65,9 +65,7 @@ enum Tag : int {
   kTagGrains = 7316,      ///< every DEM rank -> MPM at output frames, GrainRecord[]
   kTagState = 7317,       ///< DEM leader -> MPM, StateRequest (save or load the MPM state)
   kTagRezoneCells = 7318, ///< MPM -> every DEM rank, RezoneCell<D>[]: the cells whose material moves
-  kTagGrainSums = 7319,   ///< every DEM rank -> MPM, BodySums<D>[] of its grains in those cells
-  kTagCreated = 7321,     ///< DEM leader -> MPM, one double per RezoneCell: the share of its material
-                          ///< its grains took where grains were made, -1 elsewhere
+  kTagGrainSums = 7319,   ///< every DEM rank -> MPM, GrainSums<D>[] of its grains in those cells
   kTagCorrections = 7322, ///< MPM -> every DEM rank, GrainCorrection<D>[] for the cells holding grains
   kTagOracle = 7323,      ///< DEM leader -> MPM, OracleSettings of a rezone by the oracle
   kTagSupport = 7324,     ///< DEM leader -> MPM, 3 doubles: the grains' support force after a rezone
@@ -162,16 +160,17 @@ enum ZoneSource : std::int32_t {
 //                       cells in the fix's discrete regions (boundaries for the oracle)
 //   every DEM rank      CellGrains[] (its grains' volume and mass per cell)
 //   MPM -> every rank   the new zone map; RezoneCell<D>[] (cells whose material moves)
-//   every DEM rank      BodySums<D>[] of its grains in those cells; where
-//                       RezoneCell::make_grains, all DEM ranks together make new grains and
-//                       give them and the cell's old grains their share of the cell's material;
-//                       the leader adds one double per RezoneCell (the grains' share there)
-//   MPM -> every rank   GrainCorrection<D>[] for the other cells holding grains
+//   every DEM rank      where RezoneCell::make_grains, all DEM ranks together make new grains
+//                       (at their weight times their solid mass, with the points' affine
+//                       velocity); then GrainSums<D>[] of its grains, old and new, in those cells
+//   MPM -> every rank   GrainCorrection<D>[] for the cells holding grains
 //   DEM leader -> MPM   the grains' total support force after the changes (3 doubles); the
 //                       points' reaction is balanced with it (momentum stays exact)
 //   MPM -> every rank   the StepAck.
-// The grains of a cell end with the share of its material their zone gives them (1 discrete,
-// the grain weight hybrid, 0 continuum), the points with the rest: exact to round-off.
+// Every grain of a moving cell ends with its zone's weight (1 discrete, the grain weight hybrid)
+// times its solid mass: grains never drift from their density. The points take the rest of the
+// cell's material; where the cell keeps no points (or too few for the rest), the difference goes
+// to the points of the nearest cells that stay continuum or hybrid. Totals exact to round-off.
 
 /// DEM rank -> MPM: its grains whose centre lies in a cell, summed: their volume (the packing
 /// fraction) and carried mass (whether they can take their share of the cell's material).
@@ -186,14 +185,24 @@ template <int D>
 struct RezoneCell {
   std::uint64_t cell = 0;
   std::int32_t zone = 0;               ///< its new Zone
-  std::int32_t make_grains = 0;        ///< 1: its zone wants grains and it has too few for their share
-  CellMoments<D> points;               ///< the sums of its points (make_grains: grains take share * (these + old grains))
+  std::int32_t make_grains = 0;        ///< 1: its zone wants grains and it has too few for its material
+  CellMoments<D> points;               ///< the sums of its points (make_grains: new grains fill these + old grains)
   double gradient[D * D] = {};         ///< the points' mass-averaged velocity gradient (column-major)
   Occupancy occupancy = 0;             ///< sub-cells holding points (enrichment.hpp)
   double grain_weight = 1;             ///< the weight label of grains in this cell
 };
 
-/// MPM -> DEM ranks: what the grains of one cell become (a rigid correction, or removal).
+/// DEM rank -> MPM: its grains of one moving cell, summed twice: as they are (what they carry:
+/// the cell's material) and at their solid mass (carried mass / weight; the bodies the rigid
+/// correction scales, so that each grain ends at its new weight times its solid mass).
+template <int D>
+struct GrainSums {
+  BodySums<D> carried;
+  BodySums<D> solid;
+};
+
+/// MPM -> DEM ranks: what the grains of one cell become (a rigid correction of their solid
+/// sums, or removal): each grain's new mass is mass_factor times its solid mass.
 template <int D>
 struct GrainCorrection {
   std::uint64_t cell = 0;
@@ -245,6 +254,8 @@ struct StepAck {
   std::int64_t moved_cells = 0;      ///< rezone: cells whose material moved between grains and points
   std::int64_t points_made = 0;      ///< rezone: material points made
   std::int64_t points_removed = 0;   ///< rezone: material points removed
+  std::int64_t rests_moved = 0;      ///< rezone: cells whose rest went to the points of nearby cells
+  std::int64_t rests_kept = 0;       ///< rezone: cells that kept their rest (no points near enough)
   double before[7] = {};             ///< rezone: the continuum's mass, momentum, angular momentum before it
 };
 

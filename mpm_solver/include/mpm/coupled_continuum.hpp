@@ -31,12 +31,14 @@ class CoupledContinuum {
                                                   const coupler::OracleSettings& oracle,
                                                   const std::vector<std::uint64_t>& discrete_cells,
                                                   const std::vector<std::vector<coupler::CellGrains>>& grains);
-  /// Second half: with every DEM rank's grain sums in those cells and the share the grains
-  /// took where new grains were made (one per planned cell, -1 elsewhere), moves the points' share (correct, remove or make
-  /// points) and returns what the grains of each cell become. Exact: the grains of a cell
-  /// end with its zone's grain share of the cell's material, the points with the rest.
+  /// Second half: with every DEM rank's grain sums in those cells (old grains, and the new
+  /// ones the DEM side made where the plan asked), moves the points' part (correct, remove or
+  /// make points) and returns what the grains of each cell become. Exact: every grain ends at
+  /// its zone's weight times its solid mass, the cell's points take the rest of its material,
+  /// and what they cannot (a discrete cell) goes to the points of the nearest cells that stay
+  /// continuum or hybrid.
   std::vector<coupler::GrainCorrection<D>> complete_rezone(
-      const std::vector<std::vector<coupler::BodySums<D>>>& grains, const std::vector<double>& made);
+      const std::vector<std::vector<coupler::GrainSums<D>>>& grains);
   const std::vector<std::int8_t>& zones() const { return zones_; }
   /// After a rezone: balances the points' reaction to the support force against the grains'
   /// total support force (sum m a), which the rezone changed.
@@ -84,6 +86,12 @@ class CoupledContinuum {
   std::vector<MovingCell> moving_;
   std::int64_t zone_cells_[3] = {0, 0, 0};
   std::int64_t moved_cells_ = 0, points_made_ = 0, points_removed_ = 0;
+  std::int64_t rest_moved_ = 0;  ///< last rezone: cells whose rest of material went to nearby points
+  std::int64_t rest_kept_ = 0;   ///< and cells that kept it (no points near enough to take it)
+  /// Adds point p to sums (APIC spin and inertia), about `reference`.
+  void add_point_body(coupler::BodySums<D>& sums, std::size_t p, const Vec<D>& reference) const;
+  /// Applies a rigid correction to points (mass and volume scaled, velocity and C incremented).
+  void correct_points(const std::vector<std::size_t>& members, const coupler::RigidCorrection<D>& fix);
   coupler::StepAck before_;           ///< the continuum's totals before the last rezone
   coupler::StepAck ack(std::int64_t step, double mass, const Vec<D>& momentum, const coupler::Spin<D>& angular,
                        double kinetic_energy) const;
