@@ -15,5 +15,5 @@ export HYBRID_BUILD_DIR="$REPO/build" OMP_NUM_THREADS=1
 # the runs (dumps, logs, HDF5 frames) stay in runs/; only the report is committed
 "$HYBRID_VENV/bin/python" tools/collapse_report.py --out runs/collapse_report --width 0.1 --np 2 --liggghts --resume "$@"
 mkdir -p docs/results/collapse_report
-cp runs/collapse_report/{report.md,report.json,error_vs_time.png,profiles.png} docs/results/collapse_report/
+cp runs/collapse_report/{report.md,report.json,error_vs_time.png,profiles.png,kinetic_energy.png} docs/results/collapse_report/
 echo "bench/collapse_report.sh: docs/results/collapse_report/"

@@ -19,16 +19,20 @@ and in LIGGGHTS: their runout difference is the reference's noise floor between 
 (LIGGGHTS runs no 2D scene).
 
 Errors against the reference: the final surface (RMS height difference from the wall to the
-farther front, over H0), the runout (Lf - L0)/L0 (relative difference), and whether the runout
-lies in the published range (DESIGN.md section 6). Speedup: the reference's wall time over the
+farther front, over H0), the runout (Lf - L0)/L0 (relative difference), the kinetic-energy
+history (RMS difference of KE(t) over the reference's duration, over the reference's peak; grains
+plus points for the hybrid), and whether the runout lies in the published range (DESIGN.md
+section 6). Speedup: the reference's wall time over the
 run's, side by side in this job. Writes <out>/report.md, report.json, error_vs_time.png
-(surface error against wall time, the noise floor as a band) and profiles.png.
+(surface error against wall time, the noise floor as a band), profiles.png and
+kinetic_energy.png (KE against time).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -70,9 +74,53 @@ class Outcome:
     surface_error: float = float("nan")
     runout_error: float = float("nan")
     extra: dict = field(default_factory=dict)
+    kinetic_energy: tuple = ((), ())   # (t since the release, KE per m of depth), s and J/m
+    kinetic_error: float = float("nan")
 
 
-def dem_outcome(name: str, res, points=None) -> Outcome:
+def thermo_kinetic_energy(log: Path) -> tuple:
+    """KE against time since the release, from the collapse stage's thermo tables of a LAMMPS log
+    (input_decks/column_collapse/dem_2d.lmp: those with v_xfront): c_kef, plus f_couple[15]
+    (the points') in a hybrid run. A time printed twice (the end of a run, the start of the
+    next) counts once."""
+    t, ke, header = [], [], None
+    for line in log.read_text().splitlines():
+        parts = line.split()
+        if parts[:1] == ["Step"]:
+            header = parts if "v_xfront" in parts else None
+        elif line.startswith("Loop time"):
+            header = None
+        elif header and len(parts) == len(header) and re.match(r"^\d", parts[0]):
+            row = dict(zip(header, map(float, parts)))
+            if not t or row["Time"] > t[-1]:
+                t.append(row["Time"])
+                ke.append(row["c_kef"] + row.get("f_couple[15]", 0.0))
+    if not t:
+        raise RuntimeError(f"no thermo table of the collapse in {log}")
+    return tuple(np.asarray(t) - t[0]), tuple(ke)
+
+
+def frames_kinetic_energy(run) -> tuple:
+    """KE against time of a pure MPM run's frames (mpm_results.Run)."""
+    t, ke = [], []
+    for i in range(len(run)):
+        f = run.frame(i, fields=("mass", "velocity"))
+        t.append(float(f["time"]))
+        ke.append(0.5 * float(np.sum(f["mass"] * np.sum(f["velocity"] ** 2, axis=1))))
+    return tuple(np.asarray(t) - t[0]), tuple(ke)
+
+
+def kinetic_energy_error(run: tuple, ref: tuple) -> float:
+    """RMS difference of two KE histories over the reference's times (a run that ended earlier
+    keeps its last value), over the reference's peak."""
+    tr, kr = (np.asarray(a) for a in ref)
+    t, k = (np.asarray(a) for a in run)
+    if t.size == 0 or tr.size == 0:    # an outcome saved before the histories were
+        return float("nan")
+    return float(np.sqrt(np.mean((np.interp(tr, t, k) - kr) ** 2)) / kr.max())
+
+
+def dem_outcome(name: str, res, out: Path, points=None) -> Outcome:
     surface = np.array(res.profile).T
     size, height = f"{res.grains} grains", res.final_height
     if points is not None:    # the hybrid's continuum: the surface is the upper envelope of both
@@ -80,7 +128,8 @@ def dem_outcome(name: str, res, points=None) -> Outcome:
         size += f" + {len(points)} points"
         height = max(height, float(points[:, 1].max()))
     return Outcome(name, LABELS[name], res.runout, tuple(surface), res.wall_time, size, str(res.steps),
-                   height / res.width, extra={"ms_per_step": 1e3 * res.loop_time / max(res.steps, 1)})
+                   height / res.width, extra={"ms_per_step": 1e3 * res.loop_time / max(res.steps, 1)},
+                   kinetic_energy=thermo_kinetic_energy(out / "log.lammps"))
 
 
 def run_mpm(model: str, aspect: float, width: float, cell: float, out: Path, threads: int) -> Outcome:
@@ -92,13 +141,14 @@ def run_mpm(model: str, aspect: float, width: float, cell: float, out: Path, thr
     subprocess.run([str(SOLVER), str(path), "--summary", str(summary), "--quiet"], check=True,
                    env=dict(os.environ, OMP_NUM_THREADS=str(threads)), stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - start
-    final = load_run(work / "output").frame(-1)
+    frames = load_run(work / "output")
+    final = frames.frame(-1)
     figures = json.loads(summary.read_text())
     name = f"mpm_{model}"
     return Outcome(name, LABELS[name], normalised_runout(final["position"], width, cell),
                    tuple(points_surface(final["position"], cell / 2, 2 * D)), wall, f"{figures['points']} points",
                    f"{figures['steps']} (MPM)", float(np.max(final["position"][:, -1])) / width,
-                   extra={"ms_per_step": 1e3 * wall / figures["steps"]})
+                   extra={"ms_per_step": 1e3 * wall / figures["steps"]}, kinetic_energy=frames_kinetic_energy(frames))
 
 
 def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: Path) -> Outcome:
@@ -108,13 +158,13 @@ def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: 
         res = run_dem(**common, out=out / name, seed=seed)
         if res.prepared:    # time the collapse alone, as the others', from the cached column
             res = run_dem(**common, out=out / name, seed=seed)
-        return dem_outcome(name, res)
+        return dem_outcome(name, res, out / name)
     if name.startswith("hybrid_"):
         # the deck's cell is L0/10: "depth 2 cells" is 0.2 L0
         hvars = {"hybrid_fixed": {}, "hybrid_adaptive": {"hybrid": 2},
                  "hybrid_adaptive_d2": {"hybrid": 2, "hdepth": 0.2 * width}}[name]
         res = run_dem(**common, out=out / name, hybrid_vars=hvars)
-        return dem_outcome(name, res, load_run(out / name / "frames").frame(-1)["position"])
+        return dem_outcome(name, res, out / name, load_run(out / name / "frames").frame(-1)["position"])
     if name.startswith("mpm_"):
         return run_mpm(name[4:], aspect, width, cell, out, np_)
     raise ValueError(f"unknown run '{name}' (known: {', '.join(ALL_RUNS)})")
@@ -143,14 +193,16 @@ def make_report(runs: list[Outcome], aspect: float, width: float, np_: int, code
              f"Published runout (Lf - L0)/L0 for a = {aspect:g}: {lo:.2f} to {hi:.2f} (Lube et al. 2005; "
              "Lajeunesse et al. 2005). Surface error: RMS difference of the final surface height from the "
              "reference's, from the wall to the farther front, over H0. Speedup: the reference's wall time over "
-             "the run's, side by side in this job.", "",
-             "| run | (Lf - L0)/L0 | runout error | in published range | surface error vs DEM | final height / L0 | "
-             "size | steps | ms per step | wall s | speedup vs DEM |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "the run's, side by side in this job. KE history error: RMS difference of the kinetic energy "
+             "against time from the reference's, over its duration, over its peak.", "",
+             "| run | (Lf - L0)/L0 | runout error | in published range | surface error vs DEM | KE history error | "
+             "final height / L0 | size | steps | ms per step | wall s | speedup vs DEM |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in runs:
         err = "-" if r is ref else f"{r.surface_error:.1%}"
         rerr = "-" if r is ref else f"{r.runout_error:+.1%}"
-        lines.append(f"| {r.label} | {r.runout:.2f} | {rerr} | {law(r.runout)} | {err} | {r.height:.2f} | {r.size} | "
+        kerr = "-" if r is ref else f"{r.kinetic_error:.1%}"
+        lines.append(f"| {r.label} | {r.runout:.2f} | {rerr} | {law(r.runout)} | {err} | {kerr} | {r.height:.2f} | {r.size} | "
                      f"{r.steps} | {r.extra.get('ms_per_step', float('nan')):.3f} | {r.wall:.1f} | "
                      f"{ref.wall / r.wall:.2f} |")
     if codes:
@@ -198,6 +250,13 @@ def plots(runs: list[Outcome], aspect: float, width: float, out: Path) -> None:
     finish(fig, ax, "x / L0", "surface height / L0", f"Column collapse, a = {aspect:g}: final surface",
            out / "profiles.png")
 
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for i, r in enumerate(runs):
+        t, ke = r.kinetic_energy
+        ax.plot(t, ke, "k" if r is ref else f"C{i - 1}", lw=2 if r is ref else 1, label=r.label)
+    finish(fig, ax, "time since the release, s", "kinetic energy, J per m of depth",
+           f"Column collapse, a = {aspect:g}: kinetic energy", out / "kinetic_energy.png")
+
 
 def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 0.1, cell: float = 0.005,
                np_: int = 2, liggghts: bool = False, progress: bool = True,
@@ -221,8 +280,9 @@ def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 
                 runs.append(Outcome(**json.loads(saved.read_text())))
             else:
                 runs.append(run_one(name, aspect, width, cell, np_, out))
-                saved.write_text(json.dumps(dict(vars(runs[-1]), surface=[np.asarray(a).tolist()
-                                                                         for a in runs[-1].surface])))
+                r = runs[-1]
+                saved.write_text(json.dumps(dict(vars(r), surface=[np.asarray(a).tolist() for a in r.surface],
+                                                 kinetic_energy=[np.asarray(a).tolist() for a in r.kinetic_energy])))
             bar.update()
         if liggghts:
             bar.set_postfix_str("LAMMPS vs LIGGGHTS")
@@ -235,12 +295,15 @@ def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 
     for r in runs[1:]:
         r.surface_error = surface_error(r.surface, ref.surface, height0)
         r.runout_error = (r.runout - ref.runout) / ref.runout
+        r.kinetic_error = kinetic_energy_error(r.kinetic_energy, ref.kinetic_energy)
     (out / "report.md").write_text(make_report(runs, aspect, width, np_, codes, command))
     (out / "report.json").write_text(json.dumps(
         {"aspect": aspect, "width": width, "np": np_, "codes": codes,
          "runs": [{"name": r.name, "label": r.label, "runout": r.runout, "runout_error": r.runout_error,
-                   "surface_error": r.surface_error, "wall": r.wall, "size": r.size, "steps": r.steps,
-                   "height": r.height, "surface": [np.asarray(a).tolist() for a in r.surface]} for r in runs]},
+                   "surface_error": r.surface_error, "kinetic_error": r.kinetic_error, "wall": r.wall,
+                   "size": r.size, "steps": r.steps, "height": r.height,
+                   "surface": [np.asarray(a).tolist() for a in r.surface],
+                   "kinetic_energy": [np.asarray(a).tolist() for a in r.kinetic_energy]} for r in runs]},
         indent=1))
     plots(runs, aspect, width, out)
     return runs, codes
