@@ -555,14 +555,9 @@ void FixHybridMPM::connect()
   hello.step = update->ntimestep;
   hello.time = dem_time();
   hello.continuum = *settings;
-  for (int d = 0; d < 3; d++) {
-    hello.continuum.container_lo[d] = domain->boxlo[d];
-    hello.continuum.container_hi[d] = domain->boxhi[d];
-  }
-  for (int d = 0; d < domain->dimension; d++)
+  for (int d = 0; d < 3; d++)
     for (int side = 0; side < 2; side++) {
-      if (!container_given[2 * d + side]) continue;
-      const double v = container_value[2 * d + side];
+      const double v = container_edge(d, side);
       if (v < domain->boxlo[d] || v > domain->boxhi[d])
         error->all(FLERR, fmt::format("Fix hybrid/mpm: container {} {} = {} lies outside the box ({} to {})",
                                       "xyz"[d], side ? "hi" : "lo", v, domain->boxlo[d], domain->boxhi[d]));
@@ -886,7 +881,6 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
   for (std::size_t k = 0; k < cells.size(); ++k)
     if (cells[k].make_grains) making.push_back(k);
   if (making.empty()) return made;
-  const double density = settings->grain_density;
 
   // the old grains of these cells, over all ranks: what they carry, and their sums at their
   // solid mass (as members of the new body set)
@@ -913,11 +907,8 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
       // inside the continuum's container (where its points are held; a silo's floor blocks lie
       // outside it, and a grain made inside a wall would be shot out by the wall's contact)
       bool inside = true;
-      for (int a = 0; a < D; ++a) {
-        const double lo = container_given[2 * a] ? container_value[2 * a] : domain->boxlo[a];
-        const double hi = container_given[2 * a + 1] ? container_value[2 * a + 1] : domain->boxhi[a];
-        inside = inside && g.x[a] - g.radius >= lo && g.x[a] + g.radius <= hi;
-      }
+      for (int a = 0; a < D; ++a)
+        inside = inside && g.x[a] - g.radius >= container_edge(a, 0) && g.x[a] + g.radius <= container_edge(a, 1);
       if (!inside) continue;
       by_cell[cell.cell].emplace_back(j, candidates[j].size());
       candidates[j].push_back(g);
@@ -970,14 +961,14 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
     std::stable_sort(kept.begin(), kept.end(), [&](const auto &a, const auto &b) {
       return (a.x - about).squaredNorm() < (b.x - about).squaredNorm();
     });
-    coupler::BodySums<D> bodies = solid[j];
+    double filled = solid[j].moments.mass;    // the old grains' and the fitted new ones' solid mass
     std::size_t fitted = 0;
     for (auto &g : kept) {
-      g.mass = density * coupler::grain_volume<D>(g.radius);
-      if (bodies.moments.mass + 0.5 * g.mass > material.mass) break;
+      g.mass = solid_mass(g.radius);
+      if (filled + 0.5 * g.mass > material.mass) break;
       g.v = drift + gradient * (g.x - about);
       g.omega.setZero();
-      bodies.add_body(g.x, g.v, g.mass, coupler::Spin<D>::Zero(), inertia * g.radius * g.radius, Mat::Zero(), centre);
+      filled += g.mass;
       ++fitted;
     }
     kept.resize(fitted);
@@ -1007,10 +998,16 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
   return made;
 }
 
-double FixHybridMPM::solid_mass(int i) const
+double FixHybridMPM::solid_mass(double radius) const
 {
-  const double r = atom->radius[i];
-  return settings->grain_density * (domain->dimension == 2 ? coupler::grain_volume<2>(r) : coupler::grain_volume<3>(r));
+  const double volume = domain->dimension == 2 ? coupler::grain_volume<2>(radius) : coupler::grain_volume<3>(radius);
+  return settings->grain_density * volume;
+}
+
+double FixHybridMPM::container_edge(int axis, int side) const
+{
+  const int k = 2 * axis + side;
+  return container_given[k] ? container_value[k] : side ? domain->boxhi[axis] : domain->boxlo[axis];
 }
 
 /* ----------------------------------------------------------------------
@@ -1119,7 +1116,7 @@ void FixHybridMPM::rezone(int source)
       const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
       const Vec<D> centre = coupler::cell_center<D>(grid, c), xi = Eigen::Map<const Vec<D>>(x[i]),
                    vi = Eigen::Map<const Vec<D>>(v[i]);
-      const double e = inertia * radius[i] * radius[i], solid = solid_mass(i);
+      const double e = inertia * radius[i] * radius[i], solid = solid_mass(radius[i]);
       auto &sum = sums[static_cast<std::size_t>(k)];
       sum.carried.moments.cell = sum.solid.moments.cell = cells[k].cell;
       sum.carried.add_body(xi, vi, rmass[i], rmass[i] * e * omega_i, e, sv, centre);
@@ -1174,7 +1171,7 @@ void FixHybridMPM::rezone(int source)
     if constexpr (D == 2) omega[i][2] += fix.omega[0];
     else
       for (int a = 0; a < 3; a++) omega[i][a] += fix.omega[a];
-    rmass[i] = gc.mass_factor * solid_mass(i);    // the correction scales the solid sums
+    rmass[i] = gc.mass_factor * solid_mass(atom->radius[i]);    // the correction scales the solid sums
     weight[i] = gc.weight;
     if (gc.weight < 1.0) hybrid_local++;
   }
@@ -1210,7 +1207,7 @@ void FixHybridMPM::rezone(int source)
   double drift[2] = {-BIG, 0.0}, drift_all[2];    // -lightest, heaviest
   for (int i = 0; i < atom->nlocal; i++) {
     if (!(atom->mask[i] & groupbit)) continue;
-    const double f = atom->rmass[i] / (weight[i] * solid_mass(i));
+    const double f = atom->rmass[i] / (weight[i] * solid_mass(atom->radius[i]));
     drift[0] = std::max(drift[0], -f), drift[1] = std::max(drift[1], f);
   }
   MPI_Allreduce(drift, drift_all, 2, MPI_DOUBLE, MPI_MAX, world);

@@ -96,6 +96,7 @@ class FixHybridMPM : public Fix {
   bool diameter_given, density_given;      // mu(I) grain size and density from the fix line
   bool container_given[6] = {false, false, false, false, false, false};    // xlo xhi ylo yhi zlo zhi
   double container_value[6] = {0, 0, 0, 0, 0, 0};
+  double container_edge(int axis, int side) const;    // the continuum's container (side 0 lo, 1 hi)
 
   std::unique_ptr<coupler::Link> link;    // connection to the MPM process (all ranks)
   bigint exchanges;                       // completed step exchanges (all runs)
@@ -104,9 +105,9 @@ class FixHybridMPM : public Fix {
   bigint last_output_step;                // step of the last output frame
 
   double *weight;                         // per-atom share of its material a grain carries
-  // a grain's mass at weight 1 from its size and the grains' density (rezones give every grain
+  // a grain's mass at weight 1 from its radius and the grains' density (rezones give every grain
   // of a moving cell its weight times this)
-  double solid_mass(int i) const;
+  double solid_mass(double radius) const;
   double **support;                       // per-atom acceleration from the continuum until the next exchange
   std::vector<int> supported;             // local atoms with a support acceleration (valid until reneighboring)
   std::unique_ptr<coupler::GrainTransfer<2>> transfer2;    // grain <-> node transfers (2D runs)

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <map>
 #include <sstream>
 
@@ -192,7 +190,6 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     const auto c = coupler::cell_coords<D>(geometry, point_cell[p]);
     add_point_body(m.points, p, coupler::cell_center<D>(geometry, c));
     Eigen::Map<Mat<D>>(m.plan.gradient) += pts.mass[p] * pts.C[p];
-    m.material_volume += pts.volume(p) / std::max(static_cast<double>(pts.weight[p]), 1e-6);
     m.plan.occupancy |= coupler::occupancy_of_point<D>(geometry, c, pts.x[p], 2.0 * std::pow(pts.volume(p), 1.0 / D));
   }
   std::vector<coupler::RezoneCell<D>> plans;
@@ -204,9 +201,9 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     // and wherever a discrete cell holds points (it should hold none).
     const double share = grain_share(m.plan.zone);
     const double material = grain_mass[m.plan.cell] + m.points.moments.mass;
-    m.grain_solid_mass = cs.grain_density * volume[m.plan.cell];
+    const double grain_solid_mass = cs.grain_density * volume[m.plan.cell];
     m.plan.make_grains = share > 0 && !m.members.empty() &&
-                         (m.plan.zone == coupler::kDiscrete || material > coupler::kHeaviestGrains * m.grain_solid_mass);
+                         (m.plan.zone == coupler::kDiscrete || material > coupler::kHeaviestGrains * grain_solid_mass);
     m.plan.points = m.points.moments;
     plans.push_back(m.plan);
   }
@@ -284,11 +281,14 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
 
   constexpr double kRoundOff = 1e-12;      // rests below this fraction of a cell's material are round-off
   constexpr double kSmallestPart = 1e-6;   // smallest fraction of a cell's material grains or points take
-  for (Split& s : split) {
+  for (std::size_t k = 0; k < moving_.size(); ++k) {
+    Split& s = split[k];
     if (std::abs(s.rest) < kRoundOff) {  // round-off: to the larger part, never into a zero one
       (s.grains > s.points ? s.grains : s.points) += s.rest;
       s.rest = 0;
     }
+    // too small a part for its points' rigid correction (rotation rate of round-off over round-off)
+    if (s.points > 0 && s.points < kSmallestPart && solid[k].moments.mass > 0) s.grains += s.points, s.points = 0;
   }
 
   // 2. The cells' points: corrected onto their part, renewed (too few), made, or removed.
@@ -319,8 +319,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   };
   for (std::size_t k = 0; k < moving_.size(); ++k) {
     const MovingCell& m = moving_[k];
-    Split& s = split[k];
-    if (s.points > 0 && s.points < kSmallestPart && solid[k].moments.mass > 0) s.grains += s.points, s.points = 0;
+    const Split& s = split[k];
     const coupler::BodySums<D>& P = m.points;
     const Vec<D> centre = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, m.plan.cell));
     // Points carrying less than half their part are renewed, as stray grains are (above).
@@ -349,7 +348,8 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   constexpr int kRestReach = 3;
   constexpr double kRestCarriers = 2.0;
   std::map<std::uint64_t, std::vector<std::size_t>> carriers;  // cell -> its points that can take a rest
-  for (std::size_t p = 0; p < pts.size(); ++p) {
+  const bool rests = std::any_of(split.begin(), split.end(), [](const Split& s) { return s.rest != 0; });
+  for (std::size_t p = 0; rests && p < pts.size(); ++p) {  // (most rezones leave no rest)
     if (remove[p]) continue;
     const std::uint64_t c = coupler::cell_index<D>(geometry, coupler::cell_of<D>(geometry, pts.x[p]));
     if (zones_[c] != coupler::kDiscrete) carriers[c].push_back(p);

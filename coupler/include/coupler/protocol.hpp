@@ -193,8 +193,8 @@ struct RezoneCell {
 };
 
 /// DEM rank -> MPM: its grains of one moving cell, summed twice: as they are (what they carry:
-/// the cell's material) and at their solid mass (carried mass / weight; the bodies the rigid
-/// correction scales, so that each grain ends at its new weight times its solid mass).
+/// the cell's material) and at their solid mass (size times the grains' density; the bodies the
+/// rigid correction scales, so that each grain ends at its new weight times its solid mass).
 template <int D>
 struct GrainSums {
   BodySums<D> carried;

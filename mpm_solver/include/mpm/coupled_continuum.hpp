@@ -80,8 +80,6 @@ class CoupledContinuum {
     coupler::RezoneCell<D> plan;
     coupler::BodySums<D> points;
     std::vector<std::size_t> members;
-    double material_volume = 0;  ///< the room the points' material takes: sum of volume / share
-    double grain_solid_mass = 0; ///< the cell's grains at their solid density
   };
   std::vector<MovingCell> moving_;
   std::int64_t zone_cells_[3] = {0, 0, 0};
