@@ -612,9 +612,9 @@ void FixHybridMPM::compute_zones()
     double centre[3] = {0, 0, 0};
     for (std::size_t c = 0; c < zones.size(); ++c) {
       cell_centre(c, centre);
-      bool in_box = true;
+      bool in_box = true;    // overlapping it: a face may lie off the cell lattice
       for (int d = 0; d < domain->dimension; d++)
-        in_box = in_box && centre[d] >= domain->boxlo[d] && centre[d] <= domain->boxhi[d];
+        in_box = in_box && centre[d] + 0.5 * cell > domain->boxlo[d] && centre[d] - 0.5 * cell < domain->boxhi[d];
       if (in_box) n[zones[c]]++;
     }
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} grid cells in the box: {} continuum, {} hybrid, {} discrete\n",

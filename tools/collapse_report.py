@@ -14,9 +14,10 @@ Runs (all from the same settled column, except dem_seed):
   hybrid_adaptive_d2  adaptive zones, continuum from 2 cells below the surface
   mpm_drucker_prager  mpm_solver alone, Drucker-Prager
   mpm_mu_i            mpm_solver alone, mu(I)
-With --liggghts, the reduced quasi-3D slab collapse (tools/dem3d_collapse.py) runs in LAMMPS
-and in LIGGGHTS: their runout difference is the reference's noise floor between codes
-(LIGGGHTS runs no 2D scene).
+With --liggghts, a reduced 3D slab collapse between side walls (tools/dem3d_collapse.py) runs in
+LAMMPS, in LIGGGHTS and as the hybrid (fixed continuum block): the LAMMPS-LIGGGHTS difference is
+the reference's noise floor between codes (LIGGGHTS runs no 2D scene), the hybrid's errors are
+against LAMMPS.
 
 Errors against the reference: the final surface (RMS height difference from the wall to the
 farther front, over H0), the runout (Lf - L0)/L0 (relative difference), the kinetic-energy
@@ -161,7 +162,8 @@ def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: 
         return dem_outcome(name, res, out / name)
     if name.startswith("hybrid_"):
         # the deck's cell is L0/10: "depth 2 cells" is 0.2 L0
-        hvars = {"hybrid_fixed": {}, "hybrid_adaptive": {"hybrid": 2},
+        # the fixed block (y < hy L0) stays below 0.6 H0, in the static wedge of low columns too
+        hvars = {"hybrid_fixed": {"hy": min(0.7, 0.6 * aspect)}, "hybrid_adaptive": {"hybrid": 2},
                  "hybrid_adaptive_d2": {"hybrid": 2, "hdepth": 0.2 * width}}[name]
         res = run_dem(**common, out=out / name, hybrid_vars=hvars)
         return dem_outcome(name, res, out / name, load_run(out / name / "frames").frame(-1)["position"])
@@ -170,13 +172,30 @@ def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: 
     raise ValueError(f"unknown run '{name}' (known: {', '.join(ALL_RUNS)})")
 
 
-def liggghts_floor(np_: int, out: Path) -> dict:
-    """Runout of the reduced quasi-3D slab collapse in LAMMPS and LIGGGHTS (dem3d_collapse)."""
+SLAB_ROWS = 5             # the 3D slab's thickness in floor rows of 1.2 d (6 d: 2.4 MPM cells of 2.5 d)
+
+
+def slab_3d(aspect: float, np_: int, out: Path) -> dict:
+    """The reduced 3D slab between frictional side walls (tools/dem3d_collapse.py, walls 1):
+    LAMMPS (the 3D reference), LIGGGHTS (the noise floor between codes) and the hybrid with a
+    fixed continuum block (hybrid_3d.lmp), from the same initial grains. L0 = 15 d at a = 2,
+    scaled as 1/sqrt(a) so that other aspect ratios hold about as many grains. Wall times are
+    the collapse's alone (the codes' loop times after the gate opens)."""
     from dem3d_collapse import run as run3d
-    lmp = run3d(code="lammps", np_=np_, out=out / "slab_lammps")
-    lig = run3d(code="liggghts", np_=np_, out=out / "slab_liggghts")
-    return dict(lammps=lmp.runout, liggghts=lig.runout, difference=abs(lmp.runout - lig.runout) /
-                (0.5 * (lmp.runout + lig.runout)), wall_lammps=lmp.wall_time, wall_liggghts=lig.wall_time)
+    width = round(0.03 * (2.0 / aspect) ** 0.5, 4)
+    runs = {code: run3d(code=code, aspect=aspect, width=width, thickness_d=SLAB_ROWS, np_=np_,
+                        out=out / f"slab_{code}", extra_vars={"walls": 1}, timeout=3600)
+            for code in ("lammps", "liggghts", "hybrid")}
+    ref = runs["lammps"]
+    ref_surface = tuple(np.array(ref.profile).T)
+    table = {}
+    for code, res in runs.items():
+        table[code] = dict(runout=res.runout, runout_error=(res.runout - ref.runout) / ref.runout,
+                           surface_error=surface_error(tuple(np.array(res.profile).T), ref_surface, aspect * width),
+                           collapse_wall=res.collapse_wall, collapse_steps=res.collapse_steps,
+                           speedup=ref.collapse_wall / res.collapse_wall, grains=res.grains)
+    return dict(aspect=aspect, width=width, thickness=ref.thickness, runs=table,
+                difference=abs(ref.runout - runs["liggghts"].runout) / (0.5 * (ref.runout + runs["liggghts"].runout)))
 
 
 def make_report(runs: list[Outcome], aspect: float, width: float, np_: int, codes: dict | None,
@@ -206,10 +225,20 @@ def make_report(runs: list[Outcome], aspect: float, width: float, np_: int, code
                      f"{r.steps} | {r.extra.get('ms_per_step', float('nan')):.3f} | {r.wall:.1f} | "
                      f"{ref.wall / r.wall:.2f} |")
     if codes:
-        lines += ["", f"Noise floor between codes (reduced quasi-3D slab, tools/dem3d_collapse.py): runout "
-                      f"{codes['lammps']:.3f} in LAMMPS, {codes['liggghts']:.3f} in LIGGGHTS, "
-                      f"{codes['difference']:.1%} apart ({codes['wall_lammps']:.0f} s and "
-                      f"{codes['wall_liggghts']:.0f} s)."]
+        labels = {"lammps": "LAMMPS DEM (3D reference)", "liggghts": "LIGGGHTS DEM (noise floor between codes)",
+                  "hybrid": "hybrid, fixed continuum block (hybrid_3d.lmp)"}
+        lines += ["", f"## 3D slab between side walls, a = {codes['aspect']:g}, L0 = {codes['width']:g} m, "
+                      f"W = {codes['thickness']:.3g} m", "",
+                  "`tools/dem3d_collapse.py` with `walls 1` (frictional side walls: the continuum has no periodic "
+                  "boundaries), the same initial grains in each code; wall time of the collapse alone. LAMMPS and "
+                  f"LIGGGHTS runouts differ by {codes['difference']:.1%}.", "",
+                  "| run | (Lf - L0)/L0 | runout error | surface error vs LAMMPS | grains | steps | collapse wall s | "
+                  "speedup vs LAMMPS |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+        for code, r in codes["runs"].items():
+            ref_row = code == "lammps"
+            lines.append(f"| {labels[code]} | {r['runout']:.2f} | {'-' if ref_row else format(r['runout_error'], '+.1%')} | "
+                         f"{'-' if ref_row else format(r['surface_error'], '.1%')} | {r['grains']} | "
+                         f"{r['collapse_steps']} | {r['collapse_wall']:.1f} | {r['speedup']:.2f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -285,9 +314,9 @@ def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 
                                                  kinetic_energy=[np.asarray(a).tolist() for a in r.kinetic_energy])))
             bar.update()
         if liggghts:
-            bar.set_postfix_str("LAMMPS vs LIGGGHTS")
-            saved = out / "codes.json"
-            codes = json.loads(saved.read_text()) if resume and saved.exists() else liggghts_floor(np_, out)
+            bar.set_postfix_str("3D slab: LAMMPS, LIGGGHTS, hybrid")
+            saved = out / "slab3d.json"
+            codes = json.loads(saved.read_text()) if resume and saved.exists() else slab_3d(aspect, np_, out)
             saved.write_text(json.dumps(codes))
             bar.update()
     ref = runs[0]
@@ -317,7 +346,8 @@ def main(argv=None) -> int:
     p.add_argument("--cell", type=float, default=0.005, help="cell size of the pure MPM runs, m")
     p.add_argument("--np", dest="np_", type=int, default=os.cpu_count() or 1, help="LAMMPS ranks and MPM threads")
     p.add_argument("--runs", default=",".join(ALL_RUNS), help="comma-separated runs (see above)")
-    p.add_argument("--liggghts", action="store_true", help="add the LAMMPS-vs-LIGGGHTS noise floor (3D slab)")
+    p.add_argument("--liggghts", action="store_true",
+                   help="add the 3D slab: LAMMPS, LIGGGHTS (the noise floor between codes) and the hybrid")
     p.add_argument("--resume", action="store_true", help="reuse the outcomes an earlier call saved in --out")
     args = p.parse_args(argv)
     if not SOLVER.exists():

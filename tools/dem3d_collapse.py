@@ -31,6 +31,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from column_collapse import published_runout_range  # noqa: E402
+from sphere_data import write_spheres  # noqa: E402
 from dem_collapse import (connected_deposit, deck_vars, max_overlap, print_result, read_dump,  # noqa: E402
                           surface_profile)
 
@@ -38,8 +39,10 @@ REPO = Path(__file__).resolve().parent.parent
 DECKS = {
     "lammps": REPO / "input_decks" / "column_collapse" / "dem_3d.lmp",
     "liggghts": REPO / "input_decks" / "column_collapse" / "liggghts_3d.in",
+    "hybrid": REPO / "input_decks" / "column_collapse" / "dem_3d.lmp",   # + hybrid_3d.lmp, lmp_hybrid
 }
-EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
+HYBRID_DECK = REPO / "input_decks" / "column_collapse" / "hybrid_3d.lmp"
+EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts", "hybrid": "lmp"}
 
 FLOOR_SPACING = 1.2      # floor sphere spacing in x and z, in d (a 0.9 d grain cannot pass)
 LATTICE_SPACING = 1.16   # loose pouring lattice spacing (x, y), in d (> dmax + 2 * jitter)
@@ -95,23 +98,14 @@ def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: i
     grains[:, 2] %= W
     diam = rng.uniform(0.9 * d, 1.1 * d, len(grains))
     ytop = ys[-1] + 4 * d
-    lines = ["Quasi-3D column collapse grains (tools/dem3d_collapse.py)", "",
-             f"{len(floor) + len(grains)} atoms", "4 atom types", "",
-             f"{-2 * d:.9g} {length + 2 * d:.9g} xlo xhi",
-             f"{-1.5 * d:.9g} {ytop:.9g} ylo yhi",
-             f"0 {W:.9g} zlo zhi", "", "Atoms # sphere", ""]
-    k = 0
-    for p in grains:
-        k += 1
-        lines.append(f"{k} 1 {diam[k - 1]:.9g} {rho:g} {p[0]:.9g} {p[1]:.9g} {p[2]:.9g}")
-    for p in floor:
-        k += 1
-        lines.append(f"{k} 2 {d:.9g} {rho:g} {p[0]:.9g} {p[1]:.9g} {p[2]:.9g}")
-    Path(path).write_text("\n".join(lines) + "\n")
+    write_spheres(path, "Quasi-3D column collapse grains (tools/dem3d_collapse.py)",
+                  ((-2 * d, length + 2 * d), (-1.5 * d, ytop), (0.0, W)),
+                  [("grains", 1, diam, rho, grains), ("floor", 2, d, rho, floor)], types=4)
     return dict(thickness=W, length=length, poured=len(grains), floor=len(floor), ytop=ytop)
 
 
-def analyse3(final: dict, initial: dict, width: float, d: float, period_z: float) -> dict:
+def analyse3(final: dict, initial: dict, width: float, d: float, period_z: float | None) -> dict:
+    """period_z: the slab's period, or None between side walls."""
     g = final["type"] == 1
     pos = np.column_stack([final["x"][g], final["y"][g], final["z"][g]])
     r = final["radius"][g]
@@ -127,7 +121,7 @@ def analyse3(final: dict, initial: dict, width: float, d: float, period_z: float
         runout_max=(float(edge.max()) - width) / width,
         front=front,
         height=float((initial["y"][gi] + initial["radius"][gi]).max()),
-        final_height=float((pos[:, 1] + r)[pos[:, 0] < 2 * d].max()),
+        final_height=float(np.max((pos[:, 1] + r)[pos[:, 0] < 2 * d], initial=0.0)),  # 0: continuum there
         max_speed=float(speed.max()),
         max_speed_deposit=float(speed[mask].max()),
         max_overlap_initial=max_overlap(initial, d, period_z),
@@ -160,6 +154,8 @@ class Dem3dResult:
     ke_rest: float
     collapse_time: float          # simulated time from the gate removal to rest, s
     wall_time: float              # s, the whole run (pour, settle, collapse)
+    collapse_wall: float          # s, the collapse alone (the codes' loop times after the gate opens)
+    collapse_steps: int
     params: dict = field(default_factory=dict)    # kn, kt, gamma_n, ... as the deck printed them
     published: tuple = ()
     profile: list = field(default_factory=list)
@@ -172,7 +168,8 @@ class Dem3dResult:
     def summary(self) -> str:
         lo, hi = self.published
         return (f"{self.code}: slab a = {self.aspect:g}, L0 = {self.width:g} m, W = {self.thickness:.4g} m, "
-                f"{self.grains} grains, wall time {self.wall_time:.1f} s\n"
+                f"{self.grains} grains, wall time {self.wall_time:.1f} s (collapse {self.collapse_wall:.1f} s, "
+                f"{self.collapse_steps} steps)\n"
                 f"  (Lf - L0)/L0 = {self.runout:.3f} (99.5 % {self.runout_p995:.3f}, max {self.runout_max:.3f}, "
                 f"{self.detached} detached); published {lo:.2f} .. {hi:.2f}\n"
                 f"  H0 = {self.height:.4g} m, final height at wall {self.final_height:.4g} m, "
@@ -192,7 +189,9 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
         thickness_d: int = 4, np_: int = 1, out: str | Path | None = None, seed: int = 2024,
         timeout: float = 600, extra_vars: dict | None = None, exe: str | None = None) -> Dem3dResult:
     """Writes the data file, runs `code`'s deck and analyses its dumps.
-    thickness_d: slab thickness W in floor rows (W = thickness_d * 1.2 d)."""
+    thickness_d: slab thickness W in floor rows (W = thickness_d * 1.2 d).
+    code "hybrid": dem_3d.lmp with its hybrid twin (hybrid_3d.lmp, side walls: walls 1) through
+    tools/hybrid_launch.py; the result holds the grains, the points are in <out>/frames."""
     deck = DECKS[code]
     exe = exe or shutil.which(EXECUTABLES[code])
     if exe is None:
@@ -204,12 +203,18 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     geo = write_data(out / "grains.data", aspect, width, d, thickness_d, seed)
     variables = dict(data=out / "grains.data", out=out, aspect=aspect, width=width, d=d,
                      length=f"{geo['length']:.9g}", **(extra_vars or {}))
-    cmd = [exe, "-in", str(deck), "-log", str(out / "log.txt"), "-screen", "none"]
+    if code == "hybrid":
+        variables.update(walls=1, hybrid=1, hdeck=HYBRID_DECK)
+        variables.update(extra_vars or {})
+        cmd = [sys.executable, str(REPO / "tools" / "hybrid_launch.py"), "-np", str(np_), str(deck)]
+    else:
+        cmd = [exe, "-in", str(deck)]
+    cmd += ["-log", str(out / "log.txt"), "-screen", "none"]
     if code == "liggghts":
         cmd.append("-nocite")
     for k, v in variables.items():
         cmd += ["-var", k, str(v)]
-    if np_ > 1:
+    if np_ > 1 and code != "hybrid":
         cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
     t0 = time.time()
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=out)
@@ -219,14 +224,20 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
         tail = "\n".join(log.splitlines()[-30:])
         raise RuntimeError(f"{code} failed ({proc.returncode}): {' '.join(cmd)}\n{proc.stdout[-2000:]}\n"
                            f"{proc.stderr[-2000:]}\n{tail}")
+    walls = code == "hybrid" or int(variables.get("walls", 0)) == 1
     res = analyse3(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d,
-                   geo["thickness"])
+                   None if walls else geo["thickness"])
     params = {k: _num(rf"^DEM3D contact:.*\b{re.escape(k)} = (\S+)", log)
               for k in ("kn", "kt", "gamma_n", "gamma_t", "gamma_n(wall)", "gamma_t(wall)")}
     params["dt"] = _num(r"^DEM3D timestep:.*dt = (\S+) s", log)
     lines = "\n".join(ln for ln in log.splitlines() if ln.startswith("DEM3D "))
+    # the collapse stage: the loop times after the gate opens (pour and settle are the same work
+    # in every code and form, and the hybrid couples only the collapse)
+    stage = log[log.rfind("unfix           gate"):]
+    loops = re.findall(r"^Loop time of (\S+) on \d+ procs for (\d+) steps", stage, re.M)
     return Dem3dResult(
         code=code, aspect=aspect, width=width, d=d, thickness=geo["thickness"], wall_time=wall,
+        collapse_wall=sum(float(t) for t, _ in loops), collapse_steps=sum(int(n) for _, n in loops),
         ke_per_grain=_num(r"^DEM3D collapse end:.*KE/grain = (\S+) J", log),
         ke_rest=_num(r"^DEM3D collapse end:.*rest threshold (\S+) J", log),
         collapse_time=_num(r"^DEM3D collapse end:.*collapse time = (\S+) s", log),

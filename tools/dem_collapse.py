@@ -204,7 +204,8 @@ def analyse(final: dict, initial: dict, aspect: float, width: float, d: float) -
         runout_max=(float(edge.max()) - width) / width,
         front=front,
         height=height,
-        final_height=float((y + r)[near_wall].max()),
+        # 0 when no grain is at the wall (a hybrid whose continuum fills the corner)
+        final_height=float(np.max((y + r)[near_wall], initial=0.0)),
         max_speed=float(speed.max()),
         max_speed_deposit=float(speed[mask].max()),
         max_overlap_initial=max_overlap(initial, d),

@@ -302,9 +302,11 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     const Vec<D> centre = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, m.plan.cell));
     coupler::BodySums<D> material = carried[k];  // new points move with the material's affine field
     material.add(m.points);
-    for (const auto& p : coupler::points_from_moments<D>(total[k].scaled(part), geometry,
-                                                         hello_.continuum.points_per_axis, part,
-                                                         material.velocity_gradient(centre))) {
+    const auto& cs = hello_.continuum;
+    for (const auto& p : coupler::points_from_moments<D>(total[k].scaled(part), geometry, cs.points_per_axis, part,
+                                                         material.velocity_gradient(centre),
+                                                         Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
+                                                         Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>())) {
       solver_.add_point(p.x, p.v, p.C, p.mass, p.volume, p.stress);
       pts.weight.back() = label;
       own[k].push_back(pts.size() - 1);

@@ -355,10 +355,14 @@ Eigen::Matrix<double, D, 1> cell_center(const GridGeometry<D>& grid, const Eigen
 /// The lattice starts with the prior affine field `gradient` (v = G r_p, C = G; e.g. the
 /// grains' velocity gradient) and takes the rigid correction onto m (APIC points have their
 /// own inertia dx^2/2 per mass): v_p = G r_p + a + Omega x r_p, C_p = G + skew(Omega).
+/// The lattice fills the part of the cell inside the box [within_lo, within_hi] (the continuum's
+/// container: a wall off the cell lattice must not get points behind it).
 template <int D>
-std::vector<NewPoint<D>> points_from_moments(const CellMoments<D>& m, const GridGeometry<D>& grid, int per_axis,
-                                             double volume_share,
-                                             const Eigen::Matrix<double, D, D>& gradient = Eigen::Matrix<double, D, D>::Zero()) {
+std::vector<NewPoint<D>> points_from_moments(
+    const CellMoments<D>& m, const GridGeometry<D>& grid, int per_axis, double volume_share,
+    const Eigen::Matrix<double, D, D>& gradient = Eigen::Matrix<double, D, D>::Zero(),
+    const Eigen::Matrix<double, D, 1>& within_lo = Eigen::Matrix<double, D, 1>::Constant(-HUGE_VAL),
+    const Eigen::Matrix<double, D, 1>& within_hi = Eigen::Matrix<double, D, 1>::Constant(HUGE_VAL)) {
   using Vec = Eigen::Matrix<double, D, 1>;
   using Mat = Eigen::Matrix<double, D, D>;
   if (!(m.mass > 0) || per_axis < 1) return {};
@@ -366,18 +370,22 @@ std::vector<NewPoint<D>> points_from_moments(const CellMoments<D>& m, const Grid
   for (int a = 0; a < D; ++a) n *= per_axis;
   const double cell_volume = std::pow(grid.dx, D);
   const Eigen::Matrix<int, D, 1> c = cell_coords(grid, static_cast<std::size_t>(m.cell));
-  const Vec lower = grid.node_position(c);
   const Vec centre = cell_center(grid, c);
+  Vec lower = grid.node_position(c), span = Vec::Constant(grid.dx);
+  for (int a = 0; a < D; ++a) {
+    const double lo = std::max(lower[a], within_lo[a]), hi = std::min(lower[a] + grid.dx, within_hi[a]);
+    if (hi > lo) lower[a] = lo, span[a] = hi - lo;  // (a cell wholly outside keeps its lattice)
+  }
   const Mat stress = volume_share > 0 ? Mat(m.stress_volume() / (volume_share * cell_volume)) : Mat(Mat::Zero());
 
   std::vector<NewPoint<D>> points(static_cast<std::size_t>(n));
   BodySums<D> at_rest;
   for (int p = 0; p < n; ++p) {
     Vec x;
-    for (int a = D - 1, k = p; a >= 0; --a, k /= per_axis) x[a] = lower[a] + (k % per_axis + 0.5) / per_axis * grid.dx;
+    for (int a = D - 1, k = p; a >= 0; --a, k /= per_axis) x[a] = lower[a] + (k % per_axis + 0.5) / per_axis * span[a];
     points[p].x = x;
     points[p].mass = m.mass / n;
-    points[p].v = gradient * (x - centre);  // the prior field; the lattice's centre of mass is the cell centre
+    points[p].v = gradient * (x - centre);  // the prior field (the rigid correction below makes the sums exact)
     const Spin<D> spin = (points[p].mass * grid.dx * grid.dx / kQuadraticInverseInertia) * axial<D>(gradient);
     at_rest.add_body(x, points[p].v, points[p].mass, spin, grid.dx * grid.dx / 2, Mat::Zero(), centre);
   }

@@ -27,8 +27,10 @@ inline const char* zone_name(int zone) {
 
 /// Zone map from user-given continuum regions: a cell whose centre is inside them (`inside`)
 /// is continuum, unless a cell within `hybrid_width` cells (Chebyshev distance) is not - then
-/// it is hybrid. Cells whose centre lies outside the box [lower, upper] count as inside, so
-/// that the faces of the box (walls) do not make hybrid layers.
+/// it is hybrid. Cells wholly outside the box [lower, upper] count as inside, so that the
+/// faces of the box (walls) do not make hybrid layers; a cell straddling a face is judged at
+/// the point of the box nearest its centre (a face off the cell lattice, e.g. a thin slab's
+/// side wall, must not turn the grains of its last cell layer into points).
 template <int D, class Inside>
 std::vector<std::int8_t> zones_from_regions(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& lower,
                                             const Eigen::Matrix<double, D, 1>& upper, int hybrid_width,
@@ -41,8 +43,10 @@ std::vector<std::int8_t> zones_from_regions(const GridGeometry<D>& grid, const E
   std::vector<std::uint8_t> outside(n);
   for (std::size_t c = 0; c < n; ++c) {
     const auto x = cell_center(grid, cell_coords(grid, c));
-    const bool in_box = (x.array() >= lower.array()).all() && (x.array() <= upper.array()).all();
-    outside[c] = in_box && !inside(x);
+    const double half = 0.5 * grid.dx;
+    const bool overlaps_box = ((x.array() + half) > lower.array()).all() && ((x.array() - half) < upper.array()).all();
+    const Eigen::Matrix<double, D, 1> nearest = x.cwiseMax(lower).cwiseMin(upper);
+    outside[c] = overlaps_box && !inside(nearest);
   }
   std::vector<std::uint8_t> near = outside;
   for (int a = 0; a < D; ++a) {
