@@ -1483,10 +1483,12 @@ double FixHybridMPM::compute_vector(int n)
 
 void FixHybridMPM::grain_totals(double *all) const
 {
-  // mass, linear momentum, angular momentum about the origin (orbital and spin) of all grains
+  // mass, linear momentum, angular momentum about the origin (orbital and spin) of the group's
+  // grains (not of frozen floors or driven bodies outside it, whose momentum others impose)
   double local[7] = {0, 0, 0, 0, 0, 0, 0};
   double **x = atom->x, **v = atom->v, **omega = atom->omega;
   for (int i = 0; i < atom->nlocal; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
     const double m = atom->rmass[i];
     local[0] += m;
     for (int a = 0; a < 3; a++) local[1 + a] += m * v[i][a];

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -35,6 +36,25 @@ def run_mpm(exe: Path, scene: Path, *args: str, timeout: float = 900, check: boo
     if check and proc.returncode != 0:
         raise AssertionError(f"mpm_solver failed ({proc.returncode}):\n{proc.stdout}\n{proc.stderr}")
     return proc
+
+
+@pytest.fixture(scope="session")
+def lmp() -> str:
+    """Debian's stock LAMMPS; a missing one fails the test (never skips)."""
+    exe = shutil.which("lmp")
+    if exe is None:
+        pytest.fail("Debian's LAMMPS (lmp) is not on PATH; run tools/setup.sh")
+    return exe
+
+
+@pytest.fixture(scope="session")
+def liggghts() -> str:
+    """Debian's LIGGGHTS, the second pure-DEM reference; a missing one fails the test."""
+    exe = shutil.which("liggghts")
+    if exe is None:
+        pytest.fail("LIGGGHTS cannot run the reference: `liggghts` is not on PATH (Debian package "
+                    "liggghts, installed by tools/setup.sh)")
+    return exe
 
 
 # ---- coupled LAMMPS + MPM runs (tests/test_coupled_launch.py) ----------------------------

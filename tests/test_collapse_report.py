@@ -7,8 +7,9 @@ JSON and the two plots. About 4 minutes (the settled columns are cached across t
 Measured (this machine): surface error: noise floor 1.4 % of H0 (runout -0.2 %), hybrid fixed
 2.4 %, adaptive 7.1 %, MPM mu(I) 3.4 %, Drucker-Prager 6.9 %; kinetic-energy history error (over
 the reference's peak): floor 1.6 %, hybrid fixed 3.1 %, adaptive 23.7 %, MPM mu(I) 14.6 %,
-Drucker-Prager 18.9 %. The full-size report (L0 = 0.1 m,
-with the LAMMPS-vs-LIGGGHTS floor) is bench/collapse_report.sh, committed in docs/results/.
+Drucker-Prager 18.9 %. A second, low column (a = 0.5) runs a shorter matrix below. The
+full-size reports (a = 2 and 0.5, each with its 3D slab section: LAMMPS, LIGGGHTS, hybrid) are
+bench/collapse_report.sh, committed in docs/results/collapse_report*/.
 """
 from __future__ import annotations
 

@@ -15,7 +15,6 @@ size (L0 = 50 d, 5200 grains) a = 2 gives 4.26, 17 % above the published upper b
 """
 from __future__ import annotations
 
-import shutil
 
 import pytest
 
@@ -23,14 +22,6 @@ from dem_collapse import run
 
 FRICTION = 0.5      # mu, grain-grain, grain-floor and grain-wall
 TOLERANCE = 0.25    # within 25 % of the published range
-
-
-@pytest.fixture(scope="module")
-def lmp():
-    exe = shutil.which("lmp")
-    if exe is None:
-        pytest.fail("Debian's LAMMPS (lmp) is not on PATH; run tools/setup.sh")
-    return exe
 
 
 @pytest.mark.parametrize("aspect, width", [(0.5, 0.1), (2.0, 0.05)])

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 
 import pytest
 
@@ -36,10 +35,7 @@ def silo_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def silo(silo_dir):
-    lmp = shutil.which("lmp")
-    if lmp is None:
-        pytest.fail("Debian's LAMMPS (lmp) is not on PATH; run tools/setup.sh")
+def silo(silo_dir, lmp):
     tmp = silo_dir
     res = run_dem_silo(width=WIDTH, height=HEIGHT, orifice=ORIFICE, d=D, np_=1, out=tmp / "run",
                        cache_dir=tmp / "cache", tdis=0.8, fstop=0.6, lmp=lmp, timeout=900,

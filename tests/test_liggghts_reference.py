@@ -28,7 +28,6 @@ If LIGGGHTS is missing or cannot run the scene, the test fails (never skips) wit
 """
 from __future__ import annotations
 
-import shutil
 
 import pytest
 
@@ -41,19 +40,12 @@ NP = 2
 
 
 @pytest.fixture(scope="module")
-def results(tmp_path_factory):
+def results(tmp_path_factory, lmp, liggghts):
     out = {}
-    lmp = shutil.which("lmp")
-    if lmp is None:
-        pytest.fail("Debian's LAMMPS (lmp) is not on PATH; run tools/setup.sh")
     out["lammps"] = run("lammps", np_=NP, seed=SEED, out=tmp_path_factory.mktemp("dem3d_lammps"), exe=lmp)
-    lig = shutil.which("liggghts")
-    if lig is None:
-        pytest.fail("LIGGGHTS cannot run the reference: `liggghts` is not on PATH (Debian package "
-                    "liggghts, installed by tools/setup.sh)")
     try:
         out["liggghts"] = run("liggghts", np_=NP, seed=SEED, out=tmp_path_factory.mktemp("dem3d_liggghts"),
-                              exe=lig)
+                              exe=liggghts)
     except RuntimeError as exc:
         pytest.fail("LIGGGHTS could not run the 3D column collapse deck "
                     f"(input_decks/column_collapse/liggghts_3d.in):\n{exc}")

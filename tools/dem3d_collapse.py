@@ -59,6 +59,24 @@ def domain_length(aspect: float, width: float, d: float) -> float:
     return width * (1.0 + 2.0 * runout_upper(aspect)) + 20 * d
 
 
+def pour_lattice(length: float, W: float, d: float, volume: float) -> tuple:
+    """The loose pouring lattice of a slab (periodic or walled) of thickness W: x sites from
+    `margin` to length - margin at LATTICE_SPACING d, z sites filling W (no two closer than
+    the largest grain plus the jitter), and the number of grains that fill `volume` at
+    PHI_EST, 8 % extra to trim. Returns (xs, zs, margin, need)."""
+    s = LATTICE_SPACING * d
+    nz = max(1, int(round(W / s)))
+    sz = W / nz
+    if sz < 1.1 * d + 2 * LATTICE_JITTER * d:
+        nz -= 1
+        sz = W / nz
+    margin = 0.55 * 1.1 * d + LATTICE_JITTER * d
+    xs = np.arange(margin, length - margin + 1e-12, s)
+    zs = (np.arange(nz) + 0.5) * sz
+    vmean = math.pi / 6 * d ** 3 * 1.01          # <D^3> for D uniform in [0.9, 1.1] d
+    return xs, zs, margin, int(math.ceil(1.08 * PHI_EST * volume / vmean))
+
+
 def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: int,
                seed: int, rho: float = 2500.0) -> dict:
     """Writes the initial data file (atom_style sphere: id type diameter density x y z)
@@ -79,16 +97,7 @@ def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: i
     floor = np.column_stack([FX.ravel(), np.full(FX.size, -0.5 * d), FZ.ravel()])
     # grains
     s = LATTICE_SPACING * d
-    nz = max(1, int(round(W / s)))
-    sz = W / nz
-    if sz < 1.1 * d + 2 * LATTICE_JITTER * d:
-        nz -= 1
-        sz = W / nz
-    margin = 0.55 * 1.1 * d + LATTICE_JITTER * d
-    xs = np.arange(margin, width - margin + 1e-12, s)
-    zs = (np.arange(nz) + 0.5) * sz
-    vmean = math.pi / 6 * d ** 3 * 1.01          # <D^3> for D uniform in [0.9, 1.1] d
-    need = int(math.ceil(1.08 * PHI_EST * width * H0 * W / vmean))
+    xs, zs, margin, need = pour_lattice(width, W, d, width * H0 * W)
     per_layer = len(xs) * len(zs)
     layers = int(math.ceil(need / per_layer))
     ys = 0.6 * d + np.arange(layers) * s
@@ -230,6 +239,16 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     params = {k: _num(rf"^DEM3D contact:.*\b{re.escape(k)} = (\S+)", log)
               for k in ("kn", "kt", "gamma_n", "gamma_t", "gamma_n(wall)", "gamma_t(wall)")}
     params["dt"] = _num(r"^DEM3D timestep:.*dt = (\S+) s", log)
+    if code == "hybrid":    # the continuum's surface too (its points are in the frames)
+        from column_collapse import combine_surfaces, points_surface
+        from mpm_results import load_run
+        points = load_run(out / "frames").frame(-1)["position"][:, :2]
+        grains_surface = np.array(res["profile"]).T if res["profile"] else (np.zeros(0), np.zeros(0))
+        x, h = combine_surfaces(grains_surface, points_surface(points, float(variables.get("hcell", 2.5 * d)) / 2,
+                                                               2 * d))
+        res["profile"] = [(float(a), float(b)) for a, b in zip(x, h)]
+        near_wall = points[:, 0] < 2 * d
+        res["final_height"] = max(res["final_height"], float(np.max(points[near_wall, 1], initial=0.0)))
     lines = "\n".join(ln for ln in log.splitlines() if ln.startswith("DEM3D "))
     # the collapse stage: the loop times after the gate opens (pour and settle are the same work
     # in every code and form, and the hybrid couples only the collapse)

@@ -87,6 +87,11 @@ def beverloo_2d(rho_b: float, orifice: float, d: float, c: float = BEVERLOO_C2D,
     return c * rho_b * math.sqrt(g) * max(orifice - k * d, 0.0) ** 1.5
 
 
+def walls_far(width: float, orifice: float, d: float) -> bool:
+    """Nedderman's conditions for a discharge rate independent of the silo width."""
+    return width > 2.5 * orifice and width > orifice + 30 * d
+
+
 @dataclass
 class SiloResult:
     width: float
@@ -138,8 +143,7 @@ class SiloResult:
 
     @property
     def walls_far(self) -> bool:
-        """Nedderman's conditions for a rate independent of the silo width."""
-        return self.width > 2.5 * self.orifice and self.width > self.orifice + 30 * self.d
+        return walls_far(self.width, self.orifice, self.d)
 
     def summary(self) -> str:
         t_a, t_b = self.window

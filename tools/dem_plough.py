@@ -1,0 +1,334 @@
+#!/usr/bin/env python3
+"""The quasi-3D plough: a rigid vertical blade inserted to depth h into a settled granular bed
+(a slab, periodic in z) and dragged in x at constant speed V; the measure is the horizontal
+drag force on the blade over the steady part of the drag. Three forms of one scene sharing one
+parameter set: LAMMPS (input_decks/plough/dem_3d.lmp), LIGGGHTS (liggghts_3d.in, the twin
+deck with the identical parameter block) and the hybrid twin (dem_3d.lmp with
+`-var hybrid 1 -var hdeck hybrid_3d.lmp`, fix hybrid/mpm with adaptive zones and a discrete
+region moving with the blade, run through tools/hybrid_launch.py).
+
+This driver writes the data file both codes read (frozen floor spheres, the blade as a rigid
+sheet of spheres above the bed, and a loose lattice of polydisperse grains to pour; the
+column collapse's constants of tools/dem3d_collapse.py), runs one form, reads drag.dat and
+the dumps, and compares the mean drag per unit width with Rankine's passive earth pressure,
+F/W = 1/2 K_p rho_b g h^2, K_p = (1 + sin phi)/(1 - sin phi) (Albert et al., PRL 82, 205
+(1999): F ~ rho g w h^2, velocity independent at low speed), rho_b measured in the settled
+bed, phi = PHI_BED.
+
+    tools/dem_plough.py --code lammps   --np 2 --out /tmp/pl_lmp
+    tools/dem_plough.py --code liggghts --np 2 --out /tmp/pl_lig
+    tools/dem_plough.py --code hybrid   --np 2 --out /tmp/pl_hyb
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from dem3d_collapse import FLOOR_SPACING, LATTICE_JITTER, LATTICE_SPACING, _num, pour_lattice  # noqa: E402
+from dem_collapse import deck_vars, max_overlap, print_result, read_dump  # noqa: E402
+from sphere_data import write_spheres  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+DECKS = {
+    "lammps": REPO / "input_decks" / "plough" / "dem_3d.lmp",
+    "liggghts": REPO / "input_decks" / "plough" / "liggghts_3d.in",
+    "hybrid": REPO / "input_decks" / "plough" / "dem_3d.lmp",
+}
+HYBRID_DECK = REPO / "input_decks" / "plough" / "hybrid_3d.lmp"
+EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
+G = 9.81
+
+PHI_BED = 27.0          # internal friction angle of the bed, degrees (spheres, mu = 0.5: 25-30)
+BLADE_SPACING = 0.5     # blade sphere spacing in y and z, in d (no grain passes, nearly flat)
+BLADE_DENSITY = 1000.0  # blade spheres are this much denser than grains (m_eff = grain mass)
+XBLADE_D = 4.0          # blade start, x of its plane, in d from the back wall
+WINDOW = (0.5, 1.0)     # the steady part: this fraction of the dragged distance (from, to)
+HYBRID_ROWS = 9          # hybrid twin's slab thickness in floor rows (10.8 d: see hybrid_3d.lmp)
+END_MARGIN = 3.0        # end wall this many (1 + topfac) h beyond the blade's final position
+
+
+def rankine_drag(rho_b: float, depth: float, phi_deg: float = PHI_BED) -> float:
+    """Passive earth pressure per unit width on a vertical wall of depth h, N/m."""
+    s = math.sin(math.radians(phi_deg))
+    return 0.5 * (1 + s) / (1 - s) * rho_b * G * depth ** 2
+
+
+def geometry(depth: float, d: float, drag: float, topfac: float) -> dict:
+    """Blade start and end-wall position: the passive wedge in front of a blade of height
+    (1 + topfac) h reaches ~ 1.7 (1 + topfac) h ahead (slip plane at 45 - phi/2 degrees);
+    the end wall stays END_MARGIN times that height beyond the blade's final position."""
+    xblade = XBLADE_D * d
+    length = xblade + drag + END_MARGIN * (1 + topfac) * depth + 4 * d
+    return dict(xblade=xblade, length=length)
+
+
+def write_data(path: Path, bedh: float, depth: float, d: float, length: float, xblade: float,
+               thickness_d: int, topfac: float, seed: int, rho: float = 2500.0) -> dict:
+    """Writes the data file (atom_style sphere: id type diameter density x y z) both decks read.
+    Floor (type 2): frozen spheres of diameter d, square lattice FLOOR_SPACING d in x and z,
+    centres at y = -d/2. Blade (type 3): spheres of diameter d, density BLADE_DENSITY rho, in
+    the plane x = xblade, spacing BLADE_SPACING d in y (lowest centres at y = H + d) and
+    W/round(W/(BLADE_SPACING d)) in z, tall enough that, inserted to depth h, its top edge is
+    at least topfac h above y = H. Grains (type 1): diameters uniform in [0.9, 1.1] d, the
+    column collapse's loose lattice (LATTICE_SPACING, LATTICE_JITTER) between the walls,
+    without the sites that the blade would touch, for 1.08 * PHI_EST * length H W of grain
+    volume."""
+    rng = np.random.default_rng(seed)
+    W = thickness_d * FLOOR_SPACING * d
+    fs = FLOOR_SPACING * d
+    fx = np.arange(0.5 * fs - 2 * d, length + 1.5 * d, fs)     # inside the box, x < length + 2 d
+    fz = (np.arange(thickness_d) + 0.5) * fs
+    FX, FZ = np.meshgrid(fx, fz, indexing="ij")
+    floor = np.column_stack([FX.ravel(), np.full(FX.size, -0.5 * d), FZ.ravel()])
+    # blade
+    sy = BLADE_SPACING * d
+    nyb = int(math.ceil(((1 + topfac) * depth - d) / sy)) + 1
+    nzb = max(1, int(round(W / sy)))
+    by = bedh + d + np.arange(nyb) * sy
+    bz = (np.arange(nzb) + 0.5) * W / nzb
+    BY, BZ = np.meshgrid(by, bz, indexing="ij")
+    blade = np.column_stack([np.full(BY.size, xblade), BY.ravel(), BZ.ravel()])
+    # grains: the column's loose lattice over the whole bed
+    s = LATTICE_SPACING * d
+    xs, zs, margin, need = pour_lattice(length, W, d, length * bedh * W)
+    clear = 0.5 * d + margin                     # centre distance that no grain may come within
+    free_x = np.abs(xs - xblade) >= clear
+    sites = []
+    layer = 0
+    while len(sites) < need:
+        y = 0.6 * d + layer * s
+        row = xs if y < bedh + d - clear else xs[free_x]
+        sites.extend((x, y, z) for x in row for z in zs)
+        layer += 1
+    grains = np.array(sites[:need])
+    grains += rng.uniform(-LATTICE_JITTER * d, LATTICE_JITTER * d, grains.shape)
+    grains[:, 2] %= W
+    diam = rng.uniform(0.9 * d, 1.1 * d, len(grains))
+    ytop = max(grains[:, 1].max(), by[-1]) + 4 * d
+    write_spheres(path, "Quasi-3D plough: grains, floor, blade (tools/dem_plough.py)",
+                  ((-2 * d, length + 2 * d), (-1.5 * d, ytop), (0.0, W)),
+                  [("grains", 1, diam, rho, grains), ("floor", 2, d, rho, floor),
+                   ("blade", 3, d, BLADE_DENSITY * rho, blade)], types=5)
+    return dict(thickness=W, poured=len(grains), floor=len(floor), blade=len(blade), ytop=ytop)
+
+
+def read_drag(path: Path) -> np.ndarray:
+    """drag.dat of fix ave/time: columns step, x_blade, F_x, F_y."""
+    rows = [ln.split() for ln in Path(path).read_text().splitlines() if ln.strip() and not ln.startswith("#")]
+    return np.array(rows, dtype=float).reshape(-1, 4)
+
+
+def bed_state(dump: dict, bedh: float, length: float, d: float, width: float) -> dict:
+    """Packing fraction (grain volume over box volume, grains counted by their centres) of the
+    settled bed away from the walls, floor and surface (2 d), and its mean surface height (the
+    mean over x bins of 2 d of the highest grain top)."""
+    g = dump["type"] == 1
+    x, y, r = dump["x"][g], dump["y"][g], dump["radius"][g]
+    lo, hi = 2 * d, bedh - 2 * d
+    inside = (x > 2 * d) & (x < length - 2 * d) & (y > lo) & (y < hi)
+    phi = float((4.0 / 3.0 * np.pi * r[inside] ** 3).sum() / ((length - 4 * d) * (hi - lo) * width))
+    bins = np.arange(0.0, length, 2 * d)
+    k = np.digitize(x, bins)
+    tops = [float((y + r)[k == i].max()) for i in range(1, len(bins)) if np.any(k == i)]
+    return dict(packing=phi, surface=float(np.mean(tops)))
+
+
+def steady_drag(drag: np.ndarray, x0: float, dist: float, window=WINDOW, nblocks: int = 4) -> dict:
+    """Mean drag -F_x over the window of blade displacement, the standard deviation of the
+    tave-averages, and the spread of its nblocks block means (a measure of how steady it is)."""
+    disp = drag[:, 1] - x0
+    sel = (disp >= window[0] * dist) & (disp <= window[1] * dist)
+    f = -drag[sel, 2]
+    if len(f) < nblocks:
+        raise RuntimeError(f"only {len(f)} drag records in the window {window} of {dist} m")
+    blocks = [float(b.mean()) for b in np.array_split(f, nblocks)]
+    return dict(drag=float(f.mean()), drag_std=float(f.std()), drag_blocks=blocks,
+                drag_block_spread=float(np.std(blocks) / max(abs(f.mean()), 1e-300)),
+                lift=float(-drag[sel, 3].mean()))
+
+
+@dataclass
+class PloughResult:
+    code: str
+    bedh: float
+    depth: float
+    d: float
+    speed: float
+    dragged: float               # distance dragged, m
+    thickness: float             # slab thickness W, m
+    grains: int                  # after trimming
+    mass: float                  # grains' mass after trimming, kg
+    mass_end: float              # grains' (carried) mass at the end, kg (hybrid: without the points)
+    packing: float               # settled bed
+    surface: float               # settled bed's mean surface height, m
+    depth_actual: float          # surface - blade's lower edge, m
+    blade_top: float             # blade's top edge above the surface after insertion, m
+    drag: float                  # mean drag over the window, N
+    drag_std: float              # std of the tave-averages in the window, N
+    drag_blocks: list
+    drag_block_spread: float
+    lift: float
+    rankine: float               # 1/2 K_p rho_b g h^2 W, N (h = depth_actual)
+    max_overlap: float           # largest overlap / d, settled bed (grains and floor)
+    wall_time: float
+    params: dict = field(default_factory=dict)
+    hybrid: dict = field(default_factory=dict)
+    curve: list = field(default_factory=list)    # (displacement, drag) per tave
+    log: str = ""
+
+    @property
+    def ratio(self) -> float:
+        return self.drag / self.rankine
+
+    def summary(self) -> str:
+        s = (f"{self.code}: plough H = {self.bedh:g} m, h = {self.depth:g} m (actual {self.depth_actual:.4g}), "
+             f"W = {self.thickness:.4g} m, V = {self.speed:g} m/s, {self.grains} grains, wall time {self.wall_time:.1f} s\n"
+             f"  drag {self.drag:.4g} N (std of {len(self.curve)} records {self.drag_std:.3g} N, block means "
+             f"{', '.join(f'{b:.4g}' for b in self.drag_blocks)}), lift {self.lift:.3g} N\n"
+             f"  Rankine 1/2 K_p rho_b g h^2 W = {self.rankine:.4g} N (phi {PHI_BED:g} deg, packing "
+             f"{self.packing:.3f}): drag / Rankine = {self.ratio:.3f}; max overlap/d {self.max_overlap:.4f}")
+        if self.hybrid:
+            s += "\n  hybrid: " + ", ".join(f"{k} {v:.6g}" if isinstance(v, float) else f"{k} {v}"
+                                           for k, v in self.hybrid.items())
+        return s
+
+
+def hybrid_totals(log: str) -> dict:
+    """From the hybrid run's thermo lines (hybrid_3d.lmp's thermo_style): the most material points
+    and continuum / hybrid cells over the drag, and the largest relative change of the total mass
+    f_couple[8] (grains' carried mass plus points). fix hybrid/mpm sums that total over all
+    atoms, its group or not (FixHybridMPM::grain_totals), so it also holds the floor and the
+    blade; their mass is constant, so the drift is still that of grains plus points."""
+    rows = []
+    for line in log.splitlines():
+        parts = line.split()
+        if len(parts) == 13 and parts[0].isdigit():
+            try:
+                rows.append([float(p) for p in parts])
+            except ValueError:
+                pass
+    if not rows:
+        return {}
+    a = np.array(rows)     # step time ng ke ke/grain x_blade points mass continuum hybrid discrete fx fy
+    mass = a[:, 7]
+    good = mass > 0
+    return dict(points_max=int(a[:, 6].max()), mass_first=float(mass[good][0]) if good.any() else 0.0,
+                mass_drift=float(np.max(np.abs(mass[good] - mass[good][0])) / mass[good][0]) if good.any() else 0.0,
+                continuum_cells_max=int(a[:, 8].max()), hybrid_cells_max=int(a[:, 9].max()))
+
+
+def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d: float = 0.002,
+        drag: float | None = None, speed: float = 0.1, topfac: float = 0.25, thickness_d: int | None = None,
+        np_: int = 1, out: str | Path | None = None, seed: int = 2024, timeout: float = 900,
+        extra_vars: dict | None = None, hybrid_vars: dict | None = None, exe: str | None = None) -> PloughResult:
+    """Writes the data file, runs one form of the scene and analyses it. bedh defaults to 2 h,
+    drag to 3 h; thickness_d: slab thickness W in floor rows (W = thickness_d * 1.2 d; default
+    HYBRID_ROWS for the hybrid twin, whose continuum needs a thick slab, else 4, ~5 d).
+    extra_vars: further deck variables (rho, e, mu, knfac, ..., zwall); hybrid_vars: variables
+    of hybrid_3d.lmp (hcell, hdepth, ...). The hybrid twin always runs with zwall 1."""
+    bedh = bedh if bedh is not None else 2 * depth
+    if thickness_d is None:
+        thickness_d = HYBRID_ROWS if code == "hybrid" else 4
+    drag = drag if drag is not None else 3 * depth
+    deck = DECKS[code]
+    out = Path(out) if out else Path.cwd() / f"plough_{code}"
+    out.mkdir(parents=True, exist_ok=True)
+    for f in ("final.dump", "settled.dump", "inserted.dump", "drag.dat"):
+        (out / f).unlink(missing_ok=True)
+    geo = geometry(depth, d, drag, topfac)
+    data = write_data(out / "grains.data", bedh, depth, d, geo["length"], geo["xblade"], thickness_d,
+                      topfac, seed)
+    variables = dict(data=out / "grains.data", out=out, bedh=bedh, depth=depth, d=d,
+                     xblade=f"{geo['xblade']:.9g}", length=f"{geo['length']:.9g}", speed=speed,
+                     drag=f"{drag:.9g}", **(extra_vars or {}))
+    if code == "hybrid":
+        variables.update(zwall=1, hybrid=1, hdeck=HYBRID_DECK, **(hybrid_vars or {}))
+        cmd = [sys.executable, str(REPO / "tools" / "hybrid_launch.py"), "-np", str(np_), str(deck),
+               "-log", str(out / "log.txt"), "-screen", "none"]
+    else:
+        exe = exe or shutil.which(EXECUTABLES[code])
+        if exe is None:
+            raise FileNotFoundError(f"{EXECUTABLES[code]} not on PATH")
+        cmd = [exe, "-in", str(deck), "-log", str(out / "log.txt"), "-screen", "none"]
+        if code == "liggghts":
+            cmd.append("-nocite")
+        if np_ > 1:
+            cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
+    for k, v in variables.items():
+        cmd += ["-var", k, str(v)]
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    t0 = time.time()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=out, env=env)
+    wall = time.time() - t0
+    log = (out / "log.txt").read_text(errors="replace") if (out / "log.txt").exists() else ""
+    if proc.returncode != 0 or not (out / "final.dump").exists() or "PLOUGH drag end" not in log:
+        tail = "\n".join(log.splitlines()[-30:])
+        raise RuntimeError(f"{code} failed ({proc.returncode}): {' '.join(cmd)}\n{proc.stdout[-2000:]}\n"
+                           f"{proc.stderr[-2000:]}\n{tail}")
+    settled = read_dump(out / "settled.dump")
+    inserted = read_dump(out / "inserted.dump")
+    bed = bed_state(settled, bedh, geo["length"], d, data["thickness"])
+    bl = inserted["type"] == 3
+    lower_edge = float((inserted["y"][bl] - inserted["radius"][bl]).min())
+    depth_actual = bed["surface"] - lower_edge
+    x0 = float(inserted["x"][bl].mean())
+    rec = read_drag(out / "drag.dat")
+    steady = steady_drag(rec, x0, drag)
+    rho = float((extra_vars or {}).get("rho", 2500))
+    rankine = rankine_drag(bed["packing"] * rho, depth_actual) * data["thickness"]
+    gm = (settled["type"] == 1) | (settled["type"] == 2)
+    overlap = max_overlap({k: v[gm] for k, v in settled.items()}, d, data["thickness"])
+    params = {k: _num(rf"^PLOUGH contact:.*\b{re.escape(k)} = (\S+)", log)
+              for k in ("kn", "kt", "gamma_n", "gamma_t", "gamma_n(wall)", "gamma_t(wall)")}
+    params["dt"] = _num(r"^PLOUGH timestep:.*dt = (\S+) s", log)
+    hyb = hybrid_totals(log) if code == "hybrid" else {}
+    mass_end = _num(r"^PLOUGH drag end:.*mass (\S+) kg", log)
+    return PloughResult(
+        code=code, bedh=bedh, depth=depth, d=d, speed=speed, dragged=drag, thickness=data["thickness"],
+        grains=int(_num(r"^PLOUGH settled bed: (\d+) grains", log)),
+        mass=_num(r"^PLOUGH settled bed:.*mass (\S+) kg", log), mass_end=mass_end,
+        packing=bed["packing"], surface=bed["surface"], depth_actual=depth_actual,
+        blade_top=float((inserted["y"][bl] + inserted["radius"][bl]).max()) - bed["surface"],
+        max_overlap=overlap, wall_time=wall, params=params, hybrid=hyb, rankine=rankine,
+        curve=[(float(a - x0), float(-b)) for a, b in zip(rec[:, 1], rec[:, 2])],
+        log="\n".join(ln for ln in log.splitlines() if ln.startswith("PLOUGH ")), **steady)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--code", choices=sorted(DECKS), default="lammps")
+    p.add_argument("--depth", type=float, default=0.012, help="h, m")
+    p.add_argument("--bedh", type=float, default=None, help="H, bed height, m (default 2 h)")
+    p.add_argument("--d", type=float, default=0.002)
+    p.add_argument("--drag", type=float, default=None, help="dragged distance, m (default 3 h)")
+    p.add_argument("--speed", type=float, default=0.1, help="V, m/s")
+    p.add_argument("--topfac", type=float, default=0.25, help="blade top edge above the bed, in h")
+    p.add_argument("--thickness", type=int, default=None,
+                   help=f"slab thickness in floor rows (1.2 d each; default 4, hybrid {HYBRID_ROWS})")
+    p.add_argument("--np", type=int, default=1, dest="np_")
+    p.add_argument("--out", default=None)
+    p.add_argument("--seed", type=int, default=2024)
+    p.add_argument("--var", action="append", default=[], metavar="NAME=VALUE", help="deck variable")
+    p.add_argument("--hvar", action="append", default=[], metavar="NAME=VALUE",
+                   help="hybrid_3d.lmp variable (with --code hybrid)")
+    p.add_argument("--json", action="store_true")
+    a = p.parse_args(argv)
+    res = run(a.code, a.depth, a.bedh, a.d, a.drag, a.speed, a.topfac, a.thickness, a.np_, a.out, a.seed,
+              extra_vars=deck_vars(p, a.var), hybrid_vars=deck_vars(p, a.hvar, "--hvar"))
+    print_result(res, a.json, ratio=res.ratio)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
