@@ -205,7 +205,8 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     exe = exe or shutil.which(EXECUTABLES[code])
     if exe is None:
         raise FileNotFoundError(f"{EXECUTABLES[code]} not on PATH")
-    out = Path(out) if out else Path.cwd() / f"dem3d_{code}"
+    # absolute: the codes run in it (cwd), and the paths they are given must hold there too
+    out = (Path(out) if out else Path.cwd() / f"dem3d_{code}").resolve()
     out.mkdir(parents=True, exist_ok=True)
     for f in ("final.dump", "initial.dump"):
         (out / f).unlink(missing_ok=True)

@@ -242,7 +242,8 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
         thickness_d = HYBRID_ROWS if code == "hybrid" else 4
     drag = drag if drag is not None else 3 * depth
     deck = DECKS[code]
-    out = Path(out) if out else Path.cwd() / f"plough_{code}"
+    # absolute: the codes run in it (cwd), and the paths they are given must hold there too
+    out = (Path(out) if out else Path.cwd() / f"plough_{code}").resolve()
     out.mkdir(parents=True, exist_ok=True)
     for f in ("final.dump", "settled.dump", "inserted.dump", "drag.dat"):
         (out / f).unlink(missing_ok=True)
