@@ -40,6 +40,7 @@
 #include "coupler/conversion.hpp"
 #include "coupler/dem_timestep.hpp"
 #include "coupler/enrichment.hpp"
+#include "coupler/material_file.hpp"
 #include "coupler/oracle.hpp"
 #include "coupler/protocol.hpp"
 #include "coupler/transfer.hpp"
@@ -61,6 +62,8 @@ using MathConst::MY_PI;
 static constexpr double BIG = 1.0e20;
 // a new grain that an old one overlaps shrinks to fit, down to this share of its radius
 static constexpr double kSmallestShrink = 0.8;
+// the smallest MPM cell adaptive zones accept, in mean grain diameters
+static constexpr double kSmallestCellInGrains = 2.0;
 
 namespace {
 
@@ -77,19 +80,31 @@ struct HookeanConstants : PairGranHookeHistory {
     c.gamman = p->*(&HookeanConstants::gamman);
     return c;
   }
+  static double tangential_damping(const Pair *pair)
+  {
+    return static_cast<const PairGranHookeHistory *>(pair)->*(&HookeanConstants::gammat);
+  }
+  static double friction(const Pair *pair)
+  {
+    return static_cast<const PairGranHookeHistory *>(pair)->*(&HookeanConstants::xmu);
+  }
 };
 
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
     "grain_density, critical_packing, wall, container, cfl, pic, support, points_per_cell, inertia, output, "
     "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
-    "seed";
+    "seed, steps_per_contact, material";
 
 // Thermo vector entries (docs/fix_hybrid_mpm.md)
 enum {
   kVecExchanges, kVecCoupledGrains, kVecPoints, kVecSharedNodes, kVecMismatch, kVecSubsteps, kVecMpmDt,
   kVecMass, kVecPx, kVecPy, kVecPz, kVecLx, kVecLy, kVecLz, kVecContinuumKE, kVecContinuumCells, kVecHybridCells,
-  kVecDiscreteCells, kVecSize
+  kVecDiscreteCells,
+  // the energy ledger (J, J/m in 2D), as of the last exchange or rezone
+  kVecEnergy, kVecEnergyGrains, kVecEnergyContinuum, kVecEnergyDem, kVecEnergyContinuumSteps, kVecEnergyAgreementGrains,
+  kVecEnergyAgreementContinuum, kVecEnergySupport, kVecEnergyRezoneGrains, kVecEnergyRezoneContinuum,
+  kVecEnergyResidual, kVecSize
 };
 
 template <int D>
@@ -132,9 +147,11 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     settings(new coupler::ContinuumSettings), oracle(new coupler::OracleSettings), diameter_given(false), density_given(false), exchanges(0),
     restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
     converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle), new_grain_mask(1),
-    polydispersity(0.0), timestep_checked(false), fewest_steps_warned(BIG), restored(false), state_loaded(false),
+    polydispersity(0.0), timestep_checked(false), fewest_steps_warned(BIG),
+    warn_steps_per_contact(coupler::kWarnStepsPerContact), restored(false), state_loaded(false),
     clock_time(0.0), clock_step(-1), clock_dt(0.0),
-    stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1)
+    stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1),
+    ledger_started(false), continuum_start(0.0)
 {
   // fix ID group hybrid/mpm keyword value ...
 
@@ -154,13 +171,27 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   };
   coupler::ContinuumSettings &c = *settings;
   bool pic_given = false;
+  std::vector<std::string> constants_given;    // material constants on the fix line (not with 'material')
   int iarg = 3;
   while (iarg < narg) {
     const std::string key = arg[iarg];
     if (iarg + 2 > narg) illegal(fmt::format("keyword '{}' needs a value", key));
     const std::string val = arg[iarg + 1];
     int used = 2;
+    if (key == "youngs" || key == "poisson" || key == "friction" || key == "mu_s" || key == "mu_2" || key == "I0" ||
+        key == "critical_packing")
+      constants_given.push_back(key);
     if (key == "cell") cell = positive(key, val, "the MPM grid cell size");
+    else if (key == "material") {
+      try {
+        material = std::make_unique<coupler::CalibratedMaterial>(coupler::read_material_file(val));
+      } catch (const std::exception &e) {
+        illegal(fmt::format("keyword 'material': {}", e.what()));
+      }
+      if (material->dimension != domain->dimension)
+        illegal(fmt::format("keyword 'material': {} was calibrated in {}D, this run is {}D", val, material->dimension,
+                            domain->dimension));
+    }
     else if (key == "continuum") region_ids.push_back(val);
     else if (key == "discrete") discrete_region_ids.push_back(val);
     else if (key == "hybrid_width") hybrid_width = integer(key, val);
@@ -241,6 +272,12 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     else if (set_oracle_keyword(key, val)) {
     } else if (key == "grain_type") grain_type = integer(key, val);
     else if (key == "seed") template_seed = integer(key, val);
+    else if (key == "steps_per_contact") {
+      warn_steps_per_contact = number(key, val);
+      if (!(warn_steps_per_contact > coupler::kUnstableStepsPerContact))
+        illegal(fmt::format("keyword 'steps_per_contact' (warn below this many DEM steps per contact) must exceed "
+                            "pi/2, where velocity Verlet goes unstable, not {}", val));
+    }
     else if (key == "mpm_state") mpm_state_path = val;
     else if (key == "every") every = integer(key, val);
     else if (key == "timeout") reply_timeout = positive(key, val, "seconds");
@@ -253,6 +290,9 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     iarg += used;
   }
   if (cell <= 0.0) illegal("keyword 'cell' (the MPM grid cell size) is required");
+  if (material && !constants_given.empty())
+    illegal(fmt::format("keyword '{}' conflicts with 'material', which sets the continuum's constants from the "
+                        "calibration; leave one out", constants_given.front()));
   for (const auto &[kind, ids] : named_regions())
     for (const auto &rid : *ids)
       if (domain->find_region(rid) < 0)
@@ -361,14 +401,16 @@ void FixHybridMPM::init()
   }
   if (update->whichflag == 1 && strcmp(update->integrate_style, "verlet") != 0)
     error->all(FLERR, "Fix hybrid/mpm needs run_style verlet");
-  // the deck's step, before the coupling has changed any grain; later runs are checked as
-  // the rezones are (their grains may have become lighter)
+  // the deck's step, before the coupling has changed any grain, is refused only where velocity
+  // Verlet cannot integrate the stiffest contact; later runs are checked as the rezones are
+  // (their grains may have become lighter)
   if (!converted) {
     std::string why;
-    if (dem_steps_per_contact(why) < coupler::kFewestStepsPerContact)
-      error->all(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s is too long (checked before the run): {}",
+    if (dem_steps_per_contact(why) < coupler::kUnstableStepsPerContact)
+      error->all(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s is unstable (checked before the run): {}",
                                     update->dt, why));
-  } else check_dem_timestep("at the start of the run");
+  }
+  check_dem_timestep("at the start of the run");
 }
 
 /* ----------------------------------------------------------------------
@@ -382,10 +424,10 @@ void FixHybridMPM::check_dem_timestep(const std::string &when)
 {
   std::string why;
   const double steps = dem_steps_per_contact(why);
-  if (steps >= coupler::kFewestStepsPerContact || steps >= 0.9 * fewest_steps_warned) return;
+  if (steps >= warn_steps_per_contact || steps >= 0.9 * fewest_steps_warned) return;
   fewest_steps_warned = steps;
   if (comm->me == 0)
-    error->warning(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s became too long {}: {}",
+    error->warning(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s resolves the contacts poorly {}: {}",
                                       update->dt, when, why));
 }
 
@@ -433,10 +475,14 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: DEM time step {:.6g} s: {}, {:.3g} steps per contact\n",
                                     update->dt, what, steps));
   timestep_checked = true;
-  why = fmt::format("{}, and {:.3g} steps per contact (fewer than {:g}) do not resolve it (collisions lose their energy "
-                    "balance; at pi/2 steps velocity Verlet goes unstable). Use timestep {:.6g} (tc/{:g}) or less",
-                    what, steps, coupler::kFewestStepsPerContact, tc / coupler::kSafeStepsPerContact,
-                    coupler::kSafeStepsPerContact);
+  why = fmt::format("{}, and {:.3g} steps per contact ({}) {}. Use timestep {:.6g} (tc/{:g}) or less", what, steps,
+                    steps < coupler::kUnstableStepsPerContact ? "fewer than pi/2"
+                                                              : fmt::format("fewer than {:g}", warn_steps_per_contact),
+                    steps < coupler::kUnstableStepsPerContact
+                        ? "make velocity Verlet unstable"
+                        : "resolve it poorly (a collision's energy balance drifts; keyword steps_per_contact sets "
+                          "this threshold)",
+                    tc / coupler::kSafeStepsPerContact, coupler::kSafeStepsPerContact);
   return steps;
 }
 
@@ -483,6 +529,44 @@ void FixHybridMPM::grain_defaults()
     new_grain_mask = 1 | groupbit;
     if (grain_type == 0) grain_type = 1;
   }
+}
+
+/* ----------------------------------------------------------------------
+   the continuum's constants from the calibrated material (keyword material):
+   only for the contact law it was calibrated with
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::apply_material()
+{
+  const coupler::CalibratedMaterial &m = *material;
+  Pair *pair = force->pair_match("^gran/hooke", 0);
+  if (!pair)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for pair style {}, the deck uses {}; "
+                                  "calibrate this contact law with tools/calibrate.py",
+                                  m.path, m.pair, force->pair_style ? force->pair_style : "none"));
+  const coupler::HookeanContact hooke = HookeanConstants::of(pair);
+  coupler::DeckContact deck;
+  deck.dimension = domain->dimension;
+  deck.friction = HookeanConstants::friction(pair);
+  deck.kn = hooke.kn;
+  deck.kt = hooke.kt;
+  deck.gamman = hooke.gamman;
+  deck.gammat = HookeanConstants::tangential_damping(pair);
+  const double r = 0.5 * settings->grain_diameter;
+  deck.mean_mass = settings->grain_density * (domain->dimension == 2 ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r);
+  const std::string mismatch = coupler::contact_mismatch(m, deck);
+  if (!mismatch.empty())
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for another contact law ({}); "
+                                  "calibrate this one with tools/calibrate.py (docs/calibration.md)",
+                                  m.path, mismatch));
+  coupler::apply_material(m, hooke.kn, settings->grain_diameter, *settings);
+  if (comm->me == 0)
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: material {} ({}): Young's modulus {:.6g} Pa, Poisson's ratio "
+                                    "{:.3g}, friction angle {:.4g} deg, mu_s {:.4g}, mu_2 {:.4g}, I0 {:.4g}, "
+                                    "critical packing {:.4g}\n",
+                                    m.name, m.path, settings->youngs_modulus, settings->poisson_ratio,
+                                    settings->friction_angle_deg, settings->mu_s, settings->mu_2, settings->I0,
+                                    settings->critical_packing));
 }
 
 /* ----------------------------------------------------------------------
@@ -538,6 +622,15 @@ int FixHybridMPM::modify_param(int narg, char **arg)
 void FixHybridMPM::connect()
 {
   grain_defaults();
+  if (material) apply_material();
+  // With cells under 2 grain diameters the oracle's packing fraction per cell counts one or two
+  // grains and a cell's rests land on a few points: a published 2D collapse with 1.74 d cells
+  // went non-finite as its continuum shrank (issue 14), while the same scene ran with 5 d cells.
+  if (adapt_every > 0 && cell < kSmallestCellInGrains * settings->grain_diameter)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: cell {} is under {} grain diameters (mean diameter {:.4g}): adaptive "
+                                  "zones need cells that hold several grains. Use cell {:.4g} or more",
+                                  cell, kSmallestCellInGrains, settings->grain_diameter,
+                                  kSmallestCellInGrains * settings->grain_diameter));
   coupler::Hello hello;
   coupler::set_text(hello.host, fmt::format("LAMMPS {}", lmp->version));
   coupler::set_text(hello.units, update->unit_style);
@@ -554,6 +647,15 @@ void FixHybridMPM::connect()
   }
   hello.step = update->ntimestep;
   hello.time = dem_time();
+  // gravity of the grains acts on the continuum too (and sets the energy ledger's potential energy)
+  for (int d = 0; d < 3; d++) settings->gravity[d] = 0.0;
+  for (int i = 0; i < modify->nfix; i++)
+    if (utils::strmatch(modify->fix[i]->style, "^gravity")) {
+      int dim = 0;
+      const auto *g = static_cast<const double *>(modify->fix[i]->extract("gvec", dim));
+      if (g)
+        for (int d = 0; d < 3; d++) settings->gravity[d] += g[d];
+    }
   hello.continuum = *settings;
   for (int d = 0; d < 3; d++)
     for (int side = 0; side < 2; side++) {
@@ -562,15 +664,6 @@ void FixHybridMPM::connect()
         error->all(FLERR, fmt::format("Fix hybrid/mpm: container {} {} = {} lies outside the box ({} to {})",
                                       "xyz"[d], side ? "hi" : "lo", v, domain->boxlo[d], domain->boxhi[d]));
       (side ? hello.continuum.container_hi : hello.continuum.container_lo)[d] = v;
-    }
-  // gravity of the grains acts on the continuum too
-  for (int d = 0; d < 3; d++) hello.continuum.gravity[d] = 0.0;
-  for (int i = 0; i < modify->nfix; i++)
-    if (utils::strmatch(modify->fix[i]->style, "^gravity")) {
-      int dim = 0;
-      const auto *g = static_cast<const double *>(modify->fix[i]->extract("gvec", dim));
-      if (g)
-        for (int d = 0; d < 3; d++) hello.continuum.gravity[d] += g[d];
     }
 
   try {
@@ -765,6 +858,11 @@ void FixHybridMPM::setup(int /*vflag*/)
   if (!link) connect();
   if (zones.empty()) compute_zones();
   if (restored && !state_loaded) load_mpm_state();
+  if (!ledger_started) {
+    ledger.start = ledger.energy = grain_energy();
+    continuum_start = last_ack->energy;
+    ledger_started = true;
+  }
   // a rezone left pending at the end of the last run refers to atom indices that setup has
   // since reordered; the oracle runs again at its next step
   rezone_pending = false;
@@ -1059,6 +1157,7 @@ void FixHybridMPM::rezone(int source)
 
   double grains_before[7], grains_after[7];
   grain_totals(grains_before);
+  close_dem_bracket();
 
   // 1. zones: the grains' volume per cell goes to the MPM process, which runs the oracle
   const std::vector<coupler::CellGrains> volumes = cell_grains<D>();
@@ -1203,6 +1302,9 @@ void FixHybridMPM::rezone(int source)
   *last_ack = ack;
 
   grain_totals(grains_after);
+  const double energy_after = grain_energy();
+  ledger.rezone += energy_after - ledger.energy;
+  ledger.energy = energy_after;
   // how far the carried masses drifted from the grains' share of their solid mass
   double drift[2] = {-BIG, 0.0}, drift_all[2];    // -lightest, heaviest
   for (int i = 0; i < atom->nlocal; i++) {
@@ -1248,8 +1350,15 @@ void FixHybridMPM::end_of_step()
   // exchange; its impulse is taken from the points over the same interval)
   const double dt = update->dt;
   double **v = atom->v;
+  const double *rmass = atom->rmass;
+  double kicked = 0.0;    // the kinetic energy the kicks add (energy ledger)
   for (int i : supported)
-    for (int a = 0; a < 3; a++) v[i][a] += dt * support[i][a];
+    for (int a = 0; a < 3; a++) {
+      const double dv = dt * support[i][a];
+      kicked += rmass[i] * (v[i][a] + 0.5 * dv) * dv;
+      v[i][a] += dv;
+    }
+  ledger.support_open += kicked;
   const bigint step = update->ntimestep;
   const bool oracle_next = adapt_every > 0 && converted && (step + 1) % adapt_every == 0;
   if (oracle_next) modify->compute[modify->find_compute(stress_id)]->addstep(step + 1);    // its virial
@@ -1291,6 +1400,7 @@ void FixHybridMPM::exchange(bool force_output)
   view.x = xs.data();
   view.v = vs.data();
   view.mass = ms.data();
+  close_dem_bracket();
   const auto &nodes = transfer<D>().to_nodes(view);
   std::vector<coupler::NodeRecord> records(nodes.size());
   for (std::size_t k = 0; k < nodes.size(); ++k) {
@@ -1365,17 +1475,23 @@ void FixHybridMPM::apply_updates(const coupler::GrainView &view, const std::vect
   std::vector<double> dv(index.size() * D), accel(index.size() * D);
   transfer<D>().velocity_updates(view, agreed, settings->pic, dv.data(), accel.data());
   double **v = atom->v;
+  const double *rmass = atom->rmass;
   for (int i : supported) support[i][0] = support[i][1] = support[i][2] = 0.0;
   supported.clear();
+  double kicked = 0.0;    // the kinetic energy the agreement adds to the grains (energy ledger)
   for (std::size_t g = 0; g < index.size(); ++g) {
     bool any = false;
     for (int a = 0; a < D; ++a) {
-      v[index[g]][a] += dv[g * D + a];
+      const double dva = dv[g * D + a], va = v[index[g]][a];
+      kicked += rmass[index[g]] * (va + 0.5 * dva) * dva;
+      v[index[g]][a] += dva;
       support[index[g]][a] = accel[g * D + a];
       any = any || accel[g * D + a] != 0.0;
     }
     if (any) supported.push_back(index[g]);
   }
+  ledger.agreement += kicked;
+  ledger.energy += kicked;
 }
 
 /* ----------------------------------------------------------------------
@@ -1522,7 +1638,58 @@ void FixHybridMPM::fill_thermo_vector()
   out[kVecContinuumCells] = static_cast<double>(a.zone_cells[coupler::kContinuum]);
   out[kVecHybridCells] = static_cast<double>(a.zone_cells[coupler::kHybrid]);
   out[kVecDiscreteCells] = static_cast<double>(a.zone_cells[coupler::kDiscrete]);
+
+  const double local[6] = {ledger.start, ledger.energy, ledger.dem, ledger.agreement, ledger.support, ledger.rezone};
+  double sum[6];
+  MPI_Allreduce(local, sum, 6, MPI_DOUBLE, MPI_SUM, world);
+  out[kVecEnergyGrains] = sum[1];
+  out[kVecEnergyContinuum] = a.energy;
+  out[kVecEnergy] = sum[1] + a.energy;
+  out[kVecEnergyDem] = sum[2];
+  out[kVecEnergyContinuumSteps] = a.energy_physics;
+  out[kVecEnergyAgreementGrains] = sum[3];
+  out[kVecEnergyAgreementContinuum] = a.energy_agreement;
+  out[kVecEnergySupport] = sum[4];
+  out[kVecEnergyRezoneGrains] = sum[5];
+  out[kVecEnergyRezoneContinuum] = a.energy_rezone;
+  double changes = 0.0;
+  for (int k = kVecEnergyDem; k <= kVecEnergyRezoneContinuum; k++) changes += out[k];
+  out[kVecEnergyResidual] = out[kVecEnergy] - (sum[0] + continuum_start) - changes;
   vector_step = update->ntimestep;
+}
+
+/* ----------------------------------------------------------------------
+   energy ledger: the grains' kinetic (translation and rotation) and
+   potential energy, and the bracket of LAMMPS's own steps, closed at every
+   exchange and rezone (the support force's kicks in it are measured apart)
+------------------------------------------------------------------------- */
+
+double FixHybridMPM::grain_energy() const
+{
+  const double *g = settings->gravity;
+  double **x = atom->x, **v = atom->v, **omega = atom->omega;
+  double energy = 0.0;
+  for (int i = 0; i < atom->nlocal; i++) {
+    if (!(atom->mask[i] & groupbit)) continue;
+    const double m = atom->rmass[i], I = inertia * m * atom->radius[i] * atom->radius[i];
+    double kinetic = 0.0, spin = 0.0, height = 0.0;
+    for (int a = 0; a < 3; a++) {
+      kinetic += v[i][a] * v[i][a];
+      spin += omega[i][a] * omega[i][a];
+      height += g[a] * x[i][a];
+    }
+    energy += 0.5 * m * kinetic + 0.5 * I * spin - m * height;
+  }
+  return energy;
+}
+
+void FixHybridMPM::close_dem_bracket()
+{
+  const double now = grain_energy();
+  ledger.dem += now - ledger.energy - ledger.support_open;
+  ledger.support += ledger.support_open;
+  ledger.support_open = 0.0;
+  ledger.energy = now;
 }
 
 /* ---------------------------------------------------------------------- */

@@ -38,6 +38,7 @@ template <int D> struct BodySums;
 template <int D> struct GrainSums;
 struct CellGrains;
 struct OracleSettings;
+struct CalibratedMaterial;
 }
 
 namespace LAMMPS_NS {
@@ -93,6 +94,8 @@ class FixHybridMPM : public Fix {
   std::string output_path;                 // HDF5 file of grains and points ("" = none)
   std::unique_ptr<coupler::ContinuumSettings> settings;
   std::unique_ptr<coupler::OracleSettings> oracle;    // zone oracle of adaptive runs
+  std::unique_ptr<coupler::CalibratedMaterial> material;    // keyword material (null: constants from the fix line)
+  void apply_material();
   bool diameter_given, density_given;      // mu(I) grain size and density from the fix line
   bool container_given[6] = {false, false, false, false, false, false};    // xlo xhi ylo yhi zlo zhi
   double container_value[6] = {0, 0, 0, 0, 0, 0};
@@ -122,6 +125,7 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::PackingTemplate<3>> template3;
   bool timestep_checked;                  // the DEM time step was checked (and logged) once
   double fewest_steps_warned;             // steps per contact at the last warning
+  double warn_steps_per_contact;          // warn below this many DEM steps per contact (keyword steps_per_contact)
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
   std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)
@@ -135,7 +139,24 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::StepAck> last_ack;
   bigint coupled_grains;
   bigint vector_step;                     // step of the cached thermo vector
-  double vector_cache[18];                // f_ID[1..18], docs/fix_hybrid_mpm.md
+  double vector_cache[29];                // f_ID[1..29], docs/fix_hybrid_mpm.md
+
+  // The grains' side of the energy ledger (docs/fix_hybrid_mpm.md, "Energy ledger"): brackets
+  // that follow each other without a gap, each closed at an exchange or a rezone. Sums over
+  // this rank's grains; only their sum over the ranks means anything (atoms change ranks).
+  struct EnergyLedger {
+    double start = 0;        // the grains' energy when the ledger started
+    double energy = 0;       // their energy when the last bracket closed
+    double dem = 0;          // LAMMPS's own steps: contacts, walls, grains leaving
+    double agreement = 0;    // the velocity agreements' updates of the grains
+    double support = 0;      // the support force's kicks
+    double support_open = 0; // those kicks since the last bracket closed
+    double rezone = 0;       // grains deleted, made and corrected by rezones
+  } ledger;
+  bool ledger_started;
+  double continuum_start;                 // the continuum's energy when the ledger started
+  double grain_energy() const;            // kinetic (with rotation) + potential, this rank's grains
+  void close_dem_bracket();               // LAMMPS's steps since the last bracket
 
   void connect();
   template <int D> void rezone(int source);
@@ -212,15 +233,17 @@ E: Fix hybrid/mpm: no reply from the MPM process within N s ...
 The MPM process hung or crashed. The job is aborted, because MPI_Finalize
 would wait for it forever.
 
-E: Fix hybrid/mpm: the time step ... is too long (checked before the run) ...
+E: Fix hybrid/mpm: the time step ... is unstable (checked before the run) ...
 
-Fewer than 10 DEM steps per contact of the stiffest pair (the lightest grains, at their
-share in hybrid cells). Use the timestep the message names (tc/20).
+Fewer than pi/2 DEM steps per contact of the stiffest pair (the lightest grains, at their
+share in hybrid cells): velocity Verlet cannot integrate the contact. Use the timestep the
+message names (tc/20).
 
-W: Fix hybrid/mpm: the time step ... became too long after the rezone at step ...
+W: Fix hybrid/mpm: the time step ... resolves the contacts poorly ...
 
-Grains made or rescaled by a rezone are lighter than any before: fewer than 10 steps per
-contact. See docs/fix_hybrid_mpm.md, "DEM time step".
+Fewer than 10 (keyword steps_per_contact) DEM steps per contact of the stiffest pair, at
+the start of a run or after a rezone made or rescaled grains lighter than any before. See
+docs/fix_hybrid_mpm.md, "DEM time step".
 
 W: Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and gran/hooke/history only ...
 

@@ -124,6 +124,9 @@ def test_launcher_composes_both_routes(tmp_path, hybrid_programs, hybrid_plugin)
                              "0 and 1, not 1.5"),
     ("cell 0.01 wall friction", "keyword 'wall friction' needs the friction coefficient"),
     ("cell 0.01 container 0 INF", "keyword 'container' needs 4 values (xlo xhi ylo yhi; INF = the box face)"),
+    ("cell 0.01 steps_per_contact 1.5", "keyword 'steps_per_contact' (warn below this many DEM steps per contact) "
+                                        "must exceed pi/2, where velocity Verlet goes unstable, not 1.5"),
+    ("cell 0.01 material no_such_material.toml", "keyword 'material': material file no_such_material.toml: "),
 ])
 def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_programs, fix_args, message):
     deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, fix_args))
@@ -136,34 +139,132 @@ def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_prog
     assert elapsed < STOP_WITHIN
 
 
-@pytest.mark.parametrize("timestep, fix_args, share", [
-    ("5.0e-5", "cell 0.01", 1.0),
-    # grains in hybrid cells keep 10 % of their mass: the deck's own step (22.7 steps per
-    # contact of whole grains) is too long for them
-    ("1.0e-5", "cell 0.01 continuum lower weight 0.1", 0.1),
-])
-def test_too_long_dem_time_step_is_refused_naming_the_safe_step(tmp_path, hybrid_programs, timestep, fix_args, share):
-    """The deck's contact (kn = 1000 N/m, gamma_n = 500 1/s, 2 mm grains of 2500 kg/m^3): the
-    safe step is tc/20 of the lightest pair, tc = pi / sqrt(kn/m_eff - gamma_n^2/4) (DESIGN.md
+def safe_step(share: float) -> float:
+    """tc/20 of the handshake deck's stiffest pair (kn = 1000 N/m, gamma_n = 500 1/s, 2 mm grains
+    of 2500 kg/m^3) at `share` of their mass: tc = pi / sqrt(kn/m_eff - gamma_n^2/4) (DESIGN.md
     section 3), computed here independently of the fix."""
     m_eff = 0.5 * share * 2500 * 4 / 3 * math.pi * 0.001 ** 3
-    safe = math.pi / math.sqrt(1000 / m_eff - 0.25 * 500 ** 2) / 20
+    return math.pi / math.sqrt(1000 / m_eff - 0.25 * 500 ** 2) / 20
 
+
+def timestep_deck(tmp_path: Path, timestep: str, fix_args: str) -> Path:
     def edit(text):
         text = re.sub(r"^timestep\s.*$", f"timestep {timestep}", text, flags=re.M)
         text = text.replace("boundary        p f p", "boundary        f f p")
         text = text.replace("fix             2d all", "region lower block INF INF INF 0.02 INF INF units box\n"
                                                      "fix             2d all")
         return replace_fix_line(text, fix_args)
-    proc, elapsed = launch("-np", "2", str(deck_copy(tmp_path, edit)), "-log", "none", timeout=60)
+    return deck_copy(tmp_path, edit)
+
+
+@pytest.mark.parametrize("timestep, fix_args, share", [
+    ("2.0e-4", "cell 0.01", 1.0),    # 1.1 steps per contact
+    # grains in hybrid cells keep 10 % of their mass: their contacts are sqrt(10) times faster
+    ("6.0e-5", "cell 0.01 continuum lower weight 0.1", 0.1),
+])
+def test_unstable_dem_time_step_is_refused_naming_the_safe_step(tmp_path, hybrid_programs, timestep, fix_args,
+                                                                 share):
+    """Below pi/2 steps per contact velocity Verlet cannot integrate the contact: refused."""
+    proc, elapsed = launch("-np", "2", str(timestep_deck(tmp_path, timestep, fix_args)), "-log", "none", timeout=60)
     text = output(proc)
     assert proc.returncode != 0, text
-    m = re.search(r"ERROR: Fix hybrid/mpm: the time step ([0-9.e+-]+) s is too long \(checked before the run\): "
-                  r".*Use timestep ([0-9.e+-]+) \(tc/20\) or less", text)
+    m = re.search(r"ERROR: Fix hybrid/mpm: the time step ([0-9.e+-]+) s is unstable \(checked before the run\): "
+                  r".*fewer than pi/2.*Use timestep ([0-9.e+-]+) \(tc/20\) or less", text)
     assert m, text
     assert float(m.group(1)) == float(timestep)
-    assert float(m.group(2)) == pytest.approx(safe, rel=1e-5)
+    assert float(m.group(2)) == pytest.approx(safe_step(share), rel=1e-5)
     assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+@pytest.mark.parametrize("timestep, fix_args, warned", [
+    ("5.0e-5", "cell 0.01", True),                             # 4.55 steps per contact: warned, runs
+    ("1.0e-5", "cell 0.01", False),                            # 22.7: quiet
+    ("1.0e-5", "cell 0.01 steps_per_contact 30", True),        # the user's own threshold
+])
+def test_poorly_resolved_dem_time_step_is_warned_and_runs(tmp_path, hybrid_programs, timestep, fix_args, warned):
+    """Between pi/2 and the threshold (10, keyword steps_per_contact) the run goes on with a
+    warning naming the safe step, as LIGGGHTS's check/timestep/gran does."""
+    proc, _ = launch("-np", "2", str(timestep_deck(tmp_path, timestep, fix_args)), "-log", "none",
+                     "-var", "nsteps", "20", timeout=60)
+    text = output(proc)
+    assert proc.returncode == 0, text
+    m = re.search(r"WARNING: Fix hybrid/mpm: the time step ([0-9.e+-]+) s resolves the contacts poorly at the start "
+                  r"of the run: .*Use timestep ([0-9.e+-]+) \(tc/20\) or less", text)
+    assert bool(m) == warned, text
+    if m:
+        assert float(m.group(2)) == pytest.approx(safe_step(1.0), rel=1e-5)
+
+
+def material_file(path: Path, dimension: int = 2, friction: float = 0.5, restitution: float | None = None) -> Path:
+    """A calibrated material (tools/calibrate.py's format, docs/calibration.md) for the handshake
+    deck's contact law unless told otherwise; restitution by default that of its mean pair."""
+    if restitution is None:
+        m_eff = 0.5 * 2500 * 4 / 3 * math.pi * 0.001 ** 3
+        zeta = 500 / (2 * math.sqrt(1000 / m_eff))
+        restitution = math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2))
+    path.write_text(f"""[material]
+name = "test_grains"
+dimension = {dimension}
+[contact]
+pair = "gran/hooke/history"
+friction = {friction}
+restitution = {restitution}
+kt_over_kn = {2 / 7}
+gammat_over_gamman = 0.5
+polydispersity = 0.0
+stiffness_number = 1000.0
+[continuum]
+packing_fraction = 0.82
+critical_packing = 0.78
+youngs_over_kn = 0.75
+poisson = 0.2
+mu_s = 0.3
+mu_2 = 0.6
+I0 = 0.3
+friction_angle = 17.46
+""")
+    return path
+
+
+def test_adaptive_zones_refuse_cells_under_two_grain_diameters(tmp_path, hybrid_programs):
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(t.replace("boundary        p f p", "boundary        f f p"),
+                                                          "cell 0.0035 adaptive 10"))
+    proc, elapsed = launch("-np", "2", str(deck), "-log", "none", "-var", "nsteps", "20", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert ("ERROR: Fix hybrid/mpm: cell 0.0035 is under 2 grain diameters (mean diameter 0.002): adaptive zones need "
+            "cells that hold several grains. Use cell 0.004 or more") in text, text
+    assert elapsed < STOP_WITHIN
+
+
+def test_material_file_sets_the_continuum_from_the_deck_contact_law(tmp_path, hybrid_programs):
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, f"cell 0.01 material {material_file(tmp_path / 'm.toml')}"))
+    proc, _ = launch("-np", "2", str(deck), "-log", "none", "-var", "nsteps", "20", timeout=60)
+    text = output(proc)
+    assert proc.returncode == 0, text
+    m = re.search(r"fix hybrid/mpm: material test_grains \(\S+\): Young's modulus (\S+) Pa, Poisson's ratio (\S+), "
+                  r"friction angle (\S+) deg, mu_s ([0-9.e+-]+)", text)
+    assert m, text
+    assert float(m.group(1)) == pytest.approx(0.75 * 1000)    # E = youngs_over_kn * kn in 2D
+    assert [float(g) for g in m.groups()[1:]] == [0.2, 17.46, 0.3]
+
+
+@pytest.mark.parametrize("what, message", [
+    ("friction", "was calibrated for another contact law (friction mu 0.5 in the deck, 0.3 in the calibration)"),
+    ("restitution", "restitution of a mean-size pair"),
+    ("dimension", "was calibrated in 3D, this run is 2D"),
+    ("conflict", "keyword 'friction' conflicts with 'material'"),
+])
+def test_material_file_for_another_contact_law_is_refused(tmp_path, hybrid_programs, what, message):
+    path = material_file(tmp_path / "m.toml", dimension=3 if what == "dimension" else 2,
+                         friction=0.3 if what == "friction" else 0.5, restitution=0.5 if what == "restitution" else None)
+    extra = " friction 30" if what == "conflict" else ""
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, f"cell 0.01 material {path}{extra}"))
+    proc, elapsed = launch("-np", "2", str(deck), "-log", "none", "-var", "nsteps", "20", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert message in text, text
     assert elapsed < STOP_WITHIN
 
 

@@ -79,12 +79,11 @@ class Outcome:
     kinetic_error: float = float("nan")
 
 
-def thermo_kinetic_energy(log: Path) -> tuple:
-    """KE against time since the release, from the collapse stage's thermo tables of a LAMMPS log
-    (input_decks/column_collapse/dem_2d.lmp: those with v_xfront): c_kef, plus f_couple[15]
-    (the points') in a hybrid run. A time printed twice (the end of a run, the start of the
-    next) counts once."""
-    t, ke, header = [], [], None
+def thermo_table(log: Path) -> list[dict]:
+    """The collapse stage's thermo rows of a LAMMPS log (input_decks/column_collapse/dem_2d.lmp:
+    the tables with v_xfront), each a {column: value}; a time printed twice (the end of a run,
+    the start of the next) counts once."""
+    rows, header = [], None
     for line in log.read_text().splitlines():
         parts = line.split()
         if parts[:1] == ["Step"]:
@@ -93,12 +92,18 @@ def thermo_kinetic_energy(log: Path) -> tuple:
             header = None
         elif header and len(parts) == len(header) and re.match(r"^\d", parts[0]):
             row = dict(zip(header, map(float, parts)))
-            if not t or row["Time"] > t[-1]:
-                t.append(row["Time"])
-                ke.append(row["c_kef"] + row.get("f_couple[15]", 0.0))
-    if not t:
+            if not rows or row["Time"] > rows[-1]["Time"]:
+                rows.append(row)
+    if not rows:
         raise RuntimeError(f"no thermo table of the collapse in {log}")
-    return tuple(np.asarray(t) - t[0]), tuple(ke)
+    return rows
+
+
+def thermo_kinetic_energy(log: Path) -> tuple:
+    """KE against time since the release: c_kef, plus f_couple[15] (the points') in a hybrid run."""
+    rows = thermo_table(log)
+    t = np.array([r["Time"] for r in rows])
+    return tuple(t - t[0]), tuple(r["c_kef"] + r.get("f_couple[15]", 0.0) for r in rows)
 
 
 def frames_kinetic_energy(run) -> tuple:

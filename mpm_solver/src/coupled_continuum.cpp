@@ -113,6 +113,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   const coupler::ContinuumSettings& cs = hello_.continuum;
   const std::size_t n = zones_.size();
   before_ = totals(0);
+  rezone_start_energy_ = point_energy();
   std::vector<double> volume(n, 0.0), grain_mass(n, 0.0);
   for (const auto& list : volumes)
     for (const auto& r : list) {
@@ -155,11 +156,11 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     std::vector<std::uint8_t> material(n);
     for (std::size_t c = 0; c < n; ++c) material[c] = packing[c] >= os.surface_packing;
     const auto distance = coupler::signed_distance<D>(geometry, material, walls);
-    next = coupler::update_zones(zone_source == coupler::kZonesInitial ? std::vector<std::int8_t>{} : zones_,
-                                 distance, packing, shear, os);
+    next = coupler::next_zones<D>(geometry, zone_source == coupler::kZonesInitial ? std::vector<std::int8_t>{} : zones_,
+                                  distance, packing, shear, os);
     // At the start there are no previous zones to step from: go to the oracle's fixed point.
     for (int k = 0; zone_source == coupler::kZonesInitial && k < 4; ++k) {
-      auto again = coupler::update_zones(next, distance, packing, shear, os);
+      auto again = coupler::next_zones<D>(geometry, next, distance, packing, shear, os);
       if (again == next) break;
       next.swap(again);
     }
@@ -427,6 +428,9 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   remove_points(pts, remove);
   solver_.sort_points_by_cell();
   moving_.clear();
+  const double rezone_change = point_energy() - rezone_start_energy_;
+  ledger_.rezone += rezone_change;
+  ledger_.energy += rezone_change;
   return corrections;
 }
 
@@ -484,6 +488,10 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   // answer: the common velocity; dem_mass_ keeps m_dem for lambda / m_dem.
   mismatch_ = 0;
   shared_nodes_ = 0;
+  // the energy ledger: the continuum's own steps since the last bracket, then the agreement
+  const double energy_before = grid_energy();
+  ledger_.physics += energy_before - ledger_.energy;
+  double agreement_change = 0;
   std::vector<Vec<D>> impulse_per_mass(touched_.size()), support(touched_.size(), Vec<D>::Zero());
   // The support force between exchanges: what the agreement had to add over the last
   // interval becomes a steady force for the next one (F += gain * lambda / interval), so
@@ -509,12 +517,18 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       common = (m_mpm * v_mpm + m_dem * v_dem) / (m_mpm + m_dem);
       solver_.constrain_velocity(k, common);
       grid.momentum[k] = common;
+      agreement_change += 0.5 * m_mpm * (common.squaredNorm() - v_mpm.squaredNorm());
       ++shared_nodes_;
       if (gain > 0) {
         // A force set when the node held more mass would accelerate what is left there
         // beyond anything the agreement asked for: scale it with the node's reduced mass.
         const double reduced = m_dem * m_mpm / (m_dem + m_mpm);
-        const double carry = old_mass[t] > 0 ? std::min(1.0, reduced / old_mass[t]) : 0.0;
+        // A reaction between the two sides never drives their relative motion: a force that
+        // pushes the grains along their velocity relative to the points feeds energy into the
+        // flow (the energy ledger measured it: a gravity-free shearing patch gained 3x its
+        // kinetic energy), so it is not carried into the next interval.
+        const bool passive = old_force[t].dot(v_dem - v_mpm) <= 0.0;
+        const double carry = old_mass[t] > 0 && passive ? std::min(1.0, reduced / old_mass[t]) : 0.0;
         Vec<D> force = ((1.0 - kSupportLeak) * carry) * old_force[t];
         if (interval_ > 0) force += gain * m_dem * (common - v_dem) / interval_;
         support_force_[k] = force;
@@ -526,6 +540,8 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
     impulse_per_mass[t] = common - v_dem;  // lambda_i / m_dem_i
     dem_momentum_[k] = common;
   }
+  ledger_.agreement += agreement_change;
+  ledger_.energy = energy_before + agreement_change;
   std::vector<std::vector<coupler::NodeUpdate>> replies(per_rank.size());
   for (std::size_t r = 0; r < per_rank.size(); ++r) {
     replies[r].resize(per_rank[r].size());
@@ -616,12 +632,57 @@ coupler::StepAck CoupledContinuum<D>::ack(std::int64_t step, double mass, const 
   a.points_removed = points_removed_;
   a.rests_moved = rest_moved_;
   a.rests_kept = rest_kept_;
+  a.energy = ledger_.energy;
+  a.energy_physics = ledger_.physics;
+  a.energy_agreement = ledger_.agreement;
+  a.energy_rezone = ledger_.rezone;
   a.before[0] = before_.mass;
   for (int d = 0; d < 3; ++d) a.before[1 + d] = before_.momentum[d], a.before[4 + d] = before_.angular[d];
   if constexpr (D == 2) a.angular[2] = angular[0];
   else
     for (int d = 0; d < 3; ++d) a.angular[d] = angular[d];
   return a;
+}
+
+template <int D>
+double CoupledContinuum<D>::potential(double mass, const Vec<D>& x) const {
+  return -mass * Eigen::Map<const Eigen::Vector3d>(hello_.continuum.gravity).head<D>().dot(x);
+}
+
+template <int D>
+double CoupledContinuum<D>::grid_energy() const {
+  const Grid<D>& grid = solver_.grid();
+  double energy = 0;
+  const auto [first, last] = solver_.active_nodes();
+  for (std::size_t k = first; k < last; ++k) {
+    const double m = grid.mass[k];
+    if (m <= 0) continue;
+    energy += 0.5 * m * grid.momentum[k].squaredNorm() + potential(m, grid.node_position(grid.node_of(k)));
+  }
+  return energy + elastic_energy();
+}
+
+template <int D>
+double CoupledContinuum<D>::elastic_energy() const {
+  const auto& pts = solver_.points();
+  const auto& models = solver_.materials();
+  double energy = 0;
+  for (std::size_t p = 0; p < pts.size(); ++p)
+    energy += pts.volume(p) * models[pts.material[p]].template elastic_energy_density<D>(pts.stress[p]);
+  return energy;
+}
+
+template <int D>
+double CoupledContinuum<D>::point_energy() const {
+  const auto& pts = solver_.points();
+  // APIC: a point's affine field C carries kinetic energy 1/2 m (dx^2/4) |C|^2 (the quadratic
+  // B-spline's inertia D = dx^2/4 I), which its P2G hands to the grid
+  const double dx = solver_.grid().dx, inertia = 0.25 * dx * dx;
+  double energy = 0;
+  for (std::size_t p = 0; p < pts.size(); ++p)
+    energy += 0.5 * pts.mass[p] * (pts.v[p].squaredNorm() + inertia * pts.C[p].squaredNorm()) +
+              potential(pts.mass[p], pts.x[p]);
+  return energy + elastic_energy();
 }
 
 template <int D>
@@ -703,6 +764,8 @@ void CoupledContinuum<D>::load(const std::string& path) {
   time_ = state.time;
   solver_.restore(std::move(state.points), state.solver_time, state.solver_steps);
   pending_dt_ = -1;
+  ledger_ = EnergyLedger{};  // the ledger starts again with the continued run
+  ledger_.energy = point_energy();
 }
 
 template <int D>

@@ -60,7 +60,7 @@ TEST(DemTimestep, AllowedStepsResolveTheContactAndTooLongOnesDoNot) {
   coupler::HookeanContact c;
   c.kn = 1.0e5, c.kt = 2.0 / 7.0 * c.kn, c.m_eff = 1.0e-3;    // elastic: energy must come back
   const double tc = coupler::contact_time(c);
-  for (double steps : {coupler::kSafeStepsPerContact, coupler::kFewestStepsPerContact}) {
+  for (double steps : {coupler::kSafeStepsPerContact, coupler::kWarnStepsPerContact}) {
     const Collision r = collide(c, tc / steps);
     EXPECT_NEAR(r.restitution, 1.0, 0.02) << steps << " steps per contact";
     EXPECT_LT(r.max_energy_ratio, 1.03) << steps << " steps per contact";

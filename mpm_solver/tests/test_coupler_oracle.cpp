@@ -355,3 +355,36 @@ TEST(coupler_oracle, DiluteAndShearCriteriaForceDiscrete) {
 }
 
 }  // namespace
+
+TEST(coupler_oracle, HybridCellsNeedAContinuumWithinTheBand) {
+  // A layer of material on a floor: deep enough for continuum, hybrid cells border it; too thin
+  // for any continuum, its would-be hybrid cells are discrete (their points would rest on
+  // nothing but the agreement with the grains).
+  const auto s = band_settings();    // L = 0.3, h = 0.1, dx = 0.1
+  const auto grid = grid_of<2>(IVec<2>(20, 20), 0.1);
+  const std::size_t n = coupler::num_cells(grid);
+  for (const double top : {1.2, 0.75}) {
+    std::vector<std::uint8_t> points(n, 0), walls(n, 0);
+    for (std::size_t c = 0; c < n; ++c) {
+      const Vec<2> x = coupler::cell_center(grid, coupler::cell_coords(grid, c));
+      if (x[1] < top) coupler::mark_point_cell<2>(grid, x, points);
+      walls[c] = x[1] < 0.1;    // the floor's row is a wall
+    }
+    std::vector<std::int8_t> zones;
+    coupler::OracleResult r;
+    for (int k = 0; k < 3; ++k) {
+      r = coupler::run_oracle<2>(grid, {}, points, walls, zones, {}, s);
+      zones = r.zones;
+    }
+    const auto count = coupler::zone_counts(zones);
+    double deepest = 0;
+    for (double d : r.distance) deepest = std::max(deepest, d);
+    if (deepest > s.continuum_depth + s.band) {
+      EXPECT_GT(count[coupler::kContinuum], 0u) << "top " << top;
+      EXPECT_GT(count[coupler::kHybrid], 0u) << "top " << top;
+    } else {
+      EXPECT_EQ(count[coupler::kContinuum], 0u) << "top " << top;
+      EXPECT_EQ(count[coupler::kHybrid], 0u) << "top " << top;
+    }
+  }
+}

@@ -18,11 +18,14 @@ struct HookeanContact {
   double inertia = 0.4;   // I = inertia m r^2 of each grain (0.4 spheres, 0.5 disks)
 };
 
-/// Steps per contact the DEM practice asks for (dt <= tc/20), and the fewest below which the
-/// fix refuses to start a run: with fewer than 10 steps per contact the contact force is no longer
-/// resolved, the energy balance of a collision goes wrong and stiffer contacts go unstable.
+/// Steps per contact the DEM practice asks for (dt <= tc/20); the default below which the fix
+/// warns (fix keyword steps_per_contact): with fewer than 10 the contact force is no longer well
+/// resolved and a collision's energy balance drifts (LIGGGHTS's check/timestep/gran warns alike);
+/// and the fewest at all: velocity Verlet integrates an undamped oscillator of frequency omega
+/// stably only for omega dt < 2, i.e. tc/dt > pi/2. Below that the fix refuses the run.
 inline constexpr double kSafeStepsPerContact = 20;
-inline constexpr double kFewestStepsPerContact = 10;
+inline constexpr double kWarnStepsPerContact = 10;
+inline constexpr double kUnstableStepsPerContact = M_PI / 2;
 
 /// Contact time of the stiffest mode of the pair: the damped normal oscillation,
 /// tc = pi / sqrt(kn/m_eff - gamman^2/4), or the tangential one, whose stiffness the rotation

@@ -257,6 +257,13 @@ struct StepAck {
   std::int64_t rests_moved = 0;      ///< rezone: cells whose rest went to the points of nearby cells
   std::int64_t rests_kept = 0;       ///< rezone: cells that kept their rest (no points near enough)
   double before[7] = {};             ///< rezone: the continuum's mass, momentum, angular momentum before it
+  /// The continuum's side of the energy ledger (docs/fix_hybrid_mpm.md, "Energy ledger"), J (J/m in 2D):
+  /// its kinetic plus potential energy at this message (the agreed grid at an exchange, the points
+  /// after a rezone) and, summed since the start, what changed it.
+  double energy = 0;
+  double energy_physics = 0;         ///< the continuum's own steps: stress, walls, transfers, support reaction
+  double energy_agreement = 0;       ///< the velocity agreements on the continuum's nodes
+  double energy_rezone = 0;          ///< points made, removed and corrected by rezones
 };
 
 /// DEM rank -> MPM: a coupled grain's weighted mass and momentum on one node.

@@ -91,6 +91,24 @@ class CoupledContinuum {
   /// Applies a rigid correction to points (mass and volume scaled, velocity and C incremented).
   void correct_points(const std::vector<std::size_t>& members, const coupler::RigidCorrection<D>& fix);
   coupler::StepAck before_;           ///< the continuum's totals before the last rezone
+
+  /// The continuum's side of the energy ledger (docs/fix_hybrid_mpm.md, "Energy ledger").
+  /// Brackets that follow each other without a gap: the agreed grid of one exchange, the
+  /// continuum's own steps (with any rezone measured apart), the grid before the next
+  /// agreement, the agreement. So energy = energy at the start + physics + agreement + rezone.
+  struct EnergyLedger {
+    double energy = 0;      ///< kinetic + potential at the end of the last bracket
+    double physics = 0, agreement = 0, rezone = 0;
+  };
+  EnergyLedger ledger_;
+  double rezone_start_energy_ = 0;    ///< the points' energy when the rezone began
+  /// Kinetic plus potential energy of the grid (velocities after the grid update) and of the
+  /// points. Quadratic B-splines reproduce positions, so both give the same potential energy.
+  /// Both add the elastic energy the points' stress stores.
+  double grid_energy() const;
+  double point_energy() const;
+  double elastic_energy() const;
+  double potential(double mass, const Vec<D>& x) const;
   coupler::StepAck ack(std::int64_t step, double mass, const Vec<D>& momentum, const coupler::Spin<D>& angular,
                        double kinetic_energy) const;
 

@@ -37,6 +37,14 @@ struct MaterialModel {
   /// Bulk modulus in D dimensions.
   template <int D>
   double bulk_modulus() const { return lame_lambda + 2.0 * shear_modulus / D; }
+  /// Elastic energy per unit volume stored in a stress (small-strain, isotropic):
+  /// |dev sigma|^2 / (4G) + tr(sigma)^2 / (2 D^2 K) (the energy ledger, docs/fix_hybrid_mpm.md).
+  template <int D>
+  double elastic_energy_density(const Mat<D>& stress) const {
+    const double tr = stress.trace();
+    const double dev2 = stress.squaredNorm() - tr * tr / D;
+    return dev2 / (4.0 * shear_modulus) + tr * tr / (2.0 * D * D * bulk_modulus<D>());
+  }
   /// Friction-cone slope alpha in ||dev sigma|| <= alpha p, p = -tr(sigma)/D.
   /// 2D: exact Mohr-Coulomb. 3D: Mohr-Coulomb fitted on the compression meridian.
   template <int D>

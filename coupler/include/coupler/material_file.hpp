@@ -1,0 +1,52 @@
+// material_file.hpp - a granular material calibrated from its own grains (tools/calibrate.py,
+// docs/calibration.md, docs/design.md "Calibration"): the contact law it was measured with and
+// the continuum's constants, all dimensionless so that one file serves every grain size and
+// stiffness of that law. fix hybrid/mpm reads it with the keyword `material FILE`.
+#pragma once
+
+#include <string>
+
+namespace coupler {
+
+struct ContinuumSettings;
+
+struct CalibratedMaterial {
+  std::string path, name;
+  int dimension = 0;
+  // [contact]: the law of the calibration runs
+  std::string pair;
+  double friction = 0, restitution = 0, kt_over_kn = 0, gammat_over_gamman = 0, polydispersity = 0,
+         stiffness_number = 0;
+  // [continuum]
+  double packing_fraction = 0, critical_packing = 0;
+  double youngs_over_kn = 0;   ///< E / kn in 2D (kn per unit depth), E d / kn in 3D
+  double poisson = 0, mu_s = 0, mu_2 = 0, I0 = 0;
+  double friction_angle = 0;   ///< degrees: the Drucker-Prager cone that matches mu_s
+};
+
+/// Reads a material file. Throws std::runtime_error naming the file, the key and what is wrong
+/// (missing, not a number, out of range).
+CalibratedMaterial read_material_file(const std::string& path);
+
+/// A deck's Hookean contact law as its pair style holds it (LAMMPS's damping is per unit
+/// effective mass), with the mean grain's mass for the restitution.
+struct DeckContact {
+  int dimension = 0;
+  double friction = 0, kn = 0, kt = 0, gamman = 0, gammat = 0;
+  double mean_mass = 0;   ///< of a grain of the mean diameter
+};
+
+/// Normal restitution of a Hookean pair of effective mass m_eff: zeta = gamman / (2 sqrt(kn/m_eff)),
+/// e = exp(-pi zeta / sqrt(1 - zeta^2)) (0 when overdamped).
+double restitution(double kn, double gamman, double m_eff);
+
+/// What differs between the deck's contact law and the calibrated one beyond round-off of the
+/// decks' own arithmetic, each difference with both values; "" when they match.
+std::string contact_mismatch(const CalibratedMaterial& m, const DeckContact& deck);
+
+/// The continuum's constants from the material: Young's modulus from the deck's kn (and the
+/// mean grain diameter d in 3D), Poisson's ratio, the Drucker-Prager angle, mu(I) and the
+/// critical packing.
+void apply_material(const CalibratedMaterial& m, double kn, double diameter, ContinuumSettings& settings);
+
+}  // namespace coupler
