@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
+from lammps_log import ledger, ledger_closure
 from test_coupled_physics import run_deck, thermo_rows
 
 DECKS = {"2d": REPO / "input_decks" / "hybrid" / "adaptive_2d.lmp",
@@ -72,27 +73,14 @@ def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid
     assert end["rezones (grains)"] != 0 and end["rezones (continuum)"] != 0, end
 
 
-LEDGER = {19: "total", 20: "grains", 21: "continuum", 22: "DEM steps", 23: "continuum steps", 24: "agreement (grains)",
-          25: "agreement (continuum)", 26: "support force", 27: "rezones (grains)", 28: "rezones (continuum)",
-          29: "residual"}
-
-
-def ledger(row: dict) -> dict:
-    """The energy ledger of one thermo row (docs/fix_hybrid_mpm.md, "Energy ledger")."""
-    return {name: row[f"f_couple[{k}]"] for k, name in LEDGER.items()}
-
-
 def assert_ledger_closes(rows: list[dict]) -> dict:
-    """Every row: grains + continuum = their sum, and the total's change since the start is the
-    sum of what each mechanism changed, to round-off of the largest figure involved. Returns
-    the last row's ledger."""
-    start = ledger(rows[0])["total"] - ledger(rows[0])["residual"]
+    """Every row: grains + continuum = their sum (as printed), and the total's change since the
+    start is the sum of what each mechanism changed, to round-off of the largest figure
+    involved. Returns the last row's ledger."""
     for r in rows:
         e = ledger(r)
-        # (as printed: the collapse deck's thermo table has 8 digits; the residual is the fix's own)
-        assert e["total"] == pytest.approx(e["grains"] + e["continuum"], rel=1e-7, abs=1e-7 * abs(start))
-        scale = max(abs(start), abs(e["total"]), *(abs(v) for k, v in e.items() if k != "residual"))
-        assert abs(e["residual"]) <= 1e-12 * scale, (r["Step"], e)
+        assert e["total"] == pytest.approx(e["grains"] + e["continuum"], rel=1e-7, abs=1e-7 * abs(ledger(rows[0])["total"]))
+    assert ledger_closure(rows) <= 1e-12, [ledger(r) for r in rows[-3:]]
     return ledger(rows[-1])
 
 
@@ -205,9 +193,10 @@ def test_discrete_zone_follows_the_free_surface_of_a_collapsing_column(tmp_path,
     assert dist.min() >= 2 * dx
     # the energy ledger closes over the collapse (the deck prints it at every thermo row); the
     # DEM's contacts dissipate most of the released energy, and the coupling never adds energy
-    from collapse_report import thermo_table
-    end = assert_ledger_closes(thermo_table(tmp_path / "hybrid" / "log.lammps"))
-    released = -(end["total"] - (ledger(thermo_table(tmp_path / "hybrid" / "log.lammps")[0])["total"]))
+    from lammps_log import thermo_rows as log_rows
+    table = log_rows(tmp_path / "hybrid" / "log.lammps", require="f_couple[29]")
+    end = assert_ledger_closes(table)
+    released = ledger(table[0])["total"] - end["total"]
     assert released > 0
     assert -end["DEM steps"] > 0.3 * released, end
     assert end["agreement (grains)"] + end["agreement (continuum)"] < 0, end

@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import subprocess
 import sys
 import time
@@ -48,6 +47,7 @@ from column_collapse import (ColumnCollapse, combine_surfaces, normalised_runout
                              published_runout_range, surface_error)
 from dem_collapse import run as run_dem  # noqa: E402
 from mpm_results import load_run  # noqa: E402
+from lammps_log import thermo_rows  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 SOLVER = REPO / "build" / "mpm_solver" / "mpm_solver"
@@ -79,29 +79,11 @@ class Outcome:
     kinetic_error: float = float("nan")
 
 
-def thermo_table(log: Path) -> list[dict]:
-    """The collapse stage's thermo rows of a LAMMPS log (input_decks/column_collapse/dem_2d.lmp:
-    the tables with v_xfront), each a {column: value}; a time printed twice (the end of a run,
-    the start of the next) counts once."""
-    rows, header = [], None
-    for line in log.read_text().splitlines():
-        parts = line.split()
-        if parts[:1] == ["Step"]:
-            header = parts if "v_xfront" in parts else None
-        elif line.startswith("Loop time"):
-            header = None
-        elif header and len(parts) == len(header) and re.match(r"^\d", parts[0]):
-            row = dict(zip(header, map(float, parts)))
-            if not rows or row["Time"] > rows[-1]["Time"]:
-                rows.append(row)
-    if not rows:
-        raise RuntimeError(f"no thermo table of the collapse in {log}")
-    return rows
-
-
 def thermo_kinetic_energy(log: Path) -> tuple:
     """KE against time since the release: c_kef, plus f_couple[15] (the points') in a hybrid run."""
-    rows = thermo_table(log)
+    rows = thermo_rows(log, require="v_xfront")    # the collapse stage's tables
+    if not rows:
+        raise RuntimeError(f"no thermo table of the collapse in {log}")
     t = np.array([r["Time"] for r in rows])
     return tuple(t - t[0]), tuple(r["c_kef"] + r.get("f_couple[15]", 0.0) for r in rows)
 
