@@ -90,6 +90,8 @@ class CoupledContinuum {
   void add_point_body(coupler::BodySums<D>& sums, std::size_t p, const Vec<D>& reference) const;
   /// Applies a rigid correction to points (mass and volume scaled, velocity and C incremented).
   void correct_points(const std::vector<std::size_t>& members, const coupler::RigidCorrection<D>& fix);
+  /// The kinetic energy such a correction would add to the points.
+  double energy_created(const std::vector<std::size_t>& members, const coupler::RigidCorrection<D>& fix) const;
   coupler::StepAck before_;           ///< the continuum's totals before the last rezone
 
   /// The continuum's side of the energy ledger (docs/fix_hybrid_mpm.md, "Energy ledger").
