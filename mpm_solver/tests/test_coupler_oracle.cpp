@@ -301,6 +301,22 @@ TEST(coupler_oracle, BoxCellsSplitTouchedFromSurfaceFaces) {
   EXPECT_EQ(at(floor_touched, -0.05, -0.05), (Kind{1, 0}));  // the corner: the untouched face wins
   EXPECT_EQ(at(floor_touched, 0.55, 0.65), (Kind{1, 0}));    // above the untouched top
   EXPECT_EQ(at(untouched, 0.55, -0.05), (Kind{1, 0}));
+
+  // 3D: the z faces are bits 4 and 5; touching every face leaves no boundary cell at all
+  const Vec<3> lo3(0, 0, 0), hi3(0.4, 0.3, 0.5);
+  const auto g3 = coupler::padded_grid<3>(lo3, hi3, 0.1);
+  const auto zlo = coupler::box_cells<3>(g3, lo3, hi3, coupler::face_bit(2, 0));
+  const auto at3 = [&](const coupler::BoxCells& b, const Vec<3>& x) {
+    const std::size_t c = coupler::cell_index(g3, coupler::cell_of(g3, x));
+    return Kind{b.boundary[c], b.solid[c]};
+  };
+  EXPECT_EQ(at3(zlo, Vec<3>(0.15, 0.15, -0.05)), (Kind{0, 1}));
+  EXPECT_EQ(at3(zlo, Vec<3>(0.15, 0.15, 0.55)), (Kind{1, 0}));
+  EXPECT_EQ(at3(zlo, Vec<3>(0.15, -0.05, -0.05)), (Kind{1, 0}));
+  const auto all = coupler::box_cells<3>(g3, lo3, hi3, 0x3f);
+  EXPECT_EQ(std::count(all.boundary.begin(), all.boundary.end(), 1), 0);
+  EXPECT_EQ(static_cast<std::size_t>(std::count(all.solid.begin(), all.solid.end(), 1)),
+            coupler::num_cells(g3) - 4 * 3 * 5);
 }
 
 /// A box of material (points in every cell of x in [0, 3], y in [0, 1.2]) in a container
