@@ -353,9 +353,12 @@ TouchedFloor touched_floor(bool touched, bool orifice, double top = 1.2) {
     t.result = coupler::run_oracle<2>(t.grid, {}, points, box.boundary, zones, {}, s, box.solid);
     zones = t.result.zones;
   }
-  // solid cells never hold anything: always discrete
+  // solid cells never hold anything: always discrete, and no distance for the zones
   for (std::size_t c = 0; c < n; ++c)
-    if (box.solid[c]) EXPECT_EQ(t.result.zones[c], coupler::kDiscrete);
+    if (box.solid[c]) {
+      EXPECT_EQ(t.result.zones[c], coupler::kDiscrete);
+      EXPECT_LT(t.result.distance[c], 0);
+    }
   return t;
 }
 
@@ -414,8 +417,11 @@ TEST(coupler_oracle, DiscreteRegionOverTouchedFloorStillKeepsContinuumAway) {
 }
 
 TEST(coupler_oracle, ThinLayerOnTouchedFloorStaysDiscrete) {
-  // A runout thinner than depth - band on a touched floor: the free top alone keeps it discrete.
-  const TouchedFloor t = touched_floor(true, false, 0.2);
+  // A runout thinner than depth + band on a touched floor: its floor row lies in the band (0.25
+  // below the free top) but no cell wants continuum, so it is discrete too (next_zones). The
+  // solid cells below the floor lie deeper than depth + band below the top, and must not count
+  // as continuum nearby.
+  const TouchedFloor t = touched_floor(true, false, 0.3);
   EXPECT_EQ(coupler::zone_counts(t.result.zones)[coupler::kContinuum], 0u);
   EXPECT_EQ(coupler::zone_counts(t.result.zones)[coupler::kHybrid], 0u);
   EXPECT_EQ(t.zone_at(1.5, 0.05), coupler::kDiscrete);
