@@ -92,9 +92,12 @@ struct HookeanConstants : PairGranHookeHistory {
 
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
-    "grain_density, critical_packing, wall, container, cfl, pic, support, points_per_cell, inertia, output, "
+    "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
     "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
     "seed, steps_per_contact, material";
+
+// Container faces in the order of coupler::face_bit (axis, then lo/hi): the values of `touch`
+const char *const kFaceNames[6] = {"xlo", "xhi", "ylo", "yhi", "zlo", "zhi"};
 
 // Thermo vector entries (docs/fix_hybrid_mpm.md)
 enum {
@@ -244,6 +247,19 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
         if (container_given[k]) container_value[k] = number("container", v);
       }
       used = 1 + nval;
+    } else if (key == "touch") {
+      // a container face the continuum may reach (its wall law stands for the DEM wall)
+      const int nfaces = 2 * domain->dimension;
+      const int f = static_cast<int>(std::find(kFaceNames, kFaceNames + 6, val) - kFaceNames);
+      if (val == "all")
+        for (int k = 0; k < nfaces; k++) c.touched_faces |= coupler::face_bit(k / 2, k % 2);
+      else if (f < nfaces) c.touched_faces |= coupler::face_bit(f / 2, f % 2);
+      else if (f < 6)
+        illegal(fmt::format("keyword 'touch' face '{}' needs a 3D box (a 2D box has no z faces)", val));
+      else
+        illegal(fmt::format("keyword 'touch' needs a container face ({}, {}, {}, {}{} or all), not '{}'",
+                            kFaceNames[0], kFaceNames[1], kFaceNames[2], kFaceNames[3],
+                            nfaces == 6 ? ", zlo, zhi" : "", val));
     } else if (key == "cfl") {
       c.cfl = number(key, val);
       if (!(c.cfl > 0.0 && c.cfl <= 1.0)) illegal(fmt::format("keyword 'cfl' must be in (0, 1], not {}", val));
@@ -300,6 +316,9 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   if (!discrete_region_ids.empty() && adapt_every <= 0)
     illegal("keyword 'discrete' needs adaptive zones (keyword 'adaptive'): with fixed zones, leave the region "
             "out of the continuum regions instead");
+  if (c.touched_faces != 0 && adapt_every <= 0)
+    illegal("keyword 'touch' needs adaptive zones (keyword 'adaptive'): with fixed zones, the continuum regions "
+            "decide where the continuum is");
   if (inertia < 0.0) inertia = domain->dimension == 2 ? 0.5 : 0.4;
   if (adapt_every > 0 && adapt_every % every != 0)
     illegal(fmt::format("keyword 'adaptive' ({} steps) must be a multiple of 'every' ({}): zones change right "
@@ -677,6 +696,14 @@ void FixHybridMPM::connect()
                                     "protocol {}, release {}, cell {}, model {}, exchange every {} step(s)\n",
                                     link->remote_size(), link->peer_info(), coupler::kProtocolVersion,
                                     coupler::release_version(), cell, coupler::model_name(model), every));
+  if (comm->me == 0 && settings->touched_faces != 0) {
+    std::string faces;
+    for (int f = 0; f < 6; f++)
+      if (settings->touched_faces & coupler::face_bit(f / 2, f % 2))
+        faces += std::string(faces.empty() ? "" : " ") + kFaceNames[f];
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: the continuum may touch the container faces {} (its wall law "
+                                    "there); the other faces are discrete boundaries\n", faces));
+  }
 }
 
 /* ----------------------------------------------------------------------

@@ -127,6 +127,12 @@ def test_launcher_composes_both_routes(tmp_path, hybrid_programs, hybrid_plugin)
     ("cell 0.01 steps_per_contact 1.5", "keyword 'steps_per_contact' (warn below this many DEM steps per contact) "
                                         "must exceed pi/2, where velocity Verlet goes unstable, not 1.5"),
     ("cell 0.01 material no_such_material.toml", "keyword 'material': material file no_such_material.toml: "),
+    ("cell 0.01 adaptive 10 touch floor", "keyword 'touch' needs a container face (xlo, xhi, ylo, yhi or all), "
+                                          "not 'floor'"),
+    ("cell 0.01 adaptive 10 touch ylo touch zlo", "keyword 'touch' face 'zlo' needs a 3D box (a 2D box has no z "
+                                                  "faces)"),
+    ("cell 0.01 adaptive 10 touch", "keyword 'touch' needs a value"),
+    ("cell 0.01 touch ylo", "keyword 'touch' needs adaptive zones (keyword 'adaptive')"),
 ])
 def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_programs, fix_args, message):
     deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, fix_args))
@@ -266,6 +272,33 @@ def test_material_file_for_another_contact_law_is_refused(tmp_path, hybrid_progr
     assert proc.returncode != 0, text
     assert message in text, text
     assert elapsed < STOP_WITHIN
+
+
+@pytest.mark.parametrize("touch", ["", "touch ylo", "touch all"])
+def test_touched_floor_lets_the_continuum_reach_it(tmp_path, hybrid_programs, touch):
+    """The deck's bed (3 cells deep) with adaptive zones, depth + band = 2 cells: only the bottom
+    row lies deeper than that below the free top, so with the floor a discrete boundary (the
+    default) nothing is continuum, and with the floor touched (`touch ylo`, or every face) the
+    bottom row is, away from the side walls (6 of its 10 cells), or all of it (`touch all`). The
+    faces travel to the MPM process in the handshake, which runs the oracle."""
+    def edit(text):
+        text = text.replace("boundary        p f p", "boundary        f f p")  # adaptive needs fixed faces
+        return replace_fix_line(text, f"cell 0.01 adaptive 10 depth 0.012 band 0.008 {touch}")
+    log = tmp_path / "log.lammps"
+    proc, _ = launch("-np", "2", str(deck_copy(tmp_path, edit)), "-var", "nsteps", "20", "-log", str(log),
+                     timeout=120)
+    text = output(proc)
+    assert proc.returncode == 0, text
+    lammps_log = log.read_text()
+    first = re.search(r"grid cells in the box: (\d+) continuum, (\d+) hybrid", lammps_log)
+    assert first, lammps_log
+    continuum = int(first.group(1))
+    assert continuum == {"": 0, "touch ylo": 6, "touch all": 10}[touch], lammps_log
+    faces = {"": None, "touch ylo": "ylo", "touch all": "xlo xhi ylo yhi"}[touch]
+    if faces:
+        assert f"the continuum may touch the container faces {faces} (" in lammps_log
+    else:
+        assert "may touch" not in lammps_log
 
 
 def test_bad_fix_line_through_the_plugin(tmp_path, hybrid_plugin):

@@ -146,17 +146,20 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
       for (std::size_t p = 0; p < pts.size(); ++p)
         shear[point_cell[p]] = std::max(shear[point_cell[p]], coupler::shear_rate<D>(pts.C[p]));
     }
-    auto walls = coupler::cells_outside_box<D>(geometry, Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
-                                               Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>());
+    // container faces: beyond a discrete boundary, a surface of the material; beyond a face the
+    // continuum may touch, solid (material that stays discrete: coupler/oracle.hpp, box_cells)
+    coupler::BoxCells box = coupler::box_cells<D>(geometry, Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
+                                                  Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>(),
+                                                  cs.touched_faces);
     // the fix's discrete regions (an orifice, an intruder) are boundaries of the material too
     for (std::uint64_t c : discrete_cells) {
       if (c >= n) throw UserError("a discrete region's cell " + std::to_string(c) + " is outside the grid");
-      walls[c] = 1;
+      box.add_boundary(c);
     }
     const auto packing = coupler::packing_fraction<D>(geometry, volume, has_points);
-    std::vector<std::uint8_t> material(n);
-    for (std::size_t c = 0; c < n; ++c) material[c] = packing[c] >= os.surface_packing;
-    const auto distance = coupler::signed_distance<D>(geometry, material, walls);
+    auto distance = coupler::signed_distance<D>(
+        geometry, coupler::solid_material(packing, os.surface_packing, box.solid), box.boundary);
+    coupler::keep_solid_outside(distance, box.solid);
     next = coupler::next_zones<D>(geometry, zone_source == coupler::kZonesInitial ? std::vector<std::int8_t>{} : zones_,
                                   distance, packing, shear, os);
     // At the start there are no previous zones to step from: go to the oracle's fixed point.

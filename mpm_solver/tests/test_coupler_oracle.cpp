@@ -280,6 +280,153 @@ void check_column(bool from_grains) {
 TEST(coupler_oracle, ColumnIsDiscreteNearTopAndWallsAndContinuumDeepInside2D) { check_column<2>(true); }
 TEST(coupler_oracle, ColumnIsDiscreteNearTopAndWallsAndContinuumDeepInside3D) { check_column<3>(false); }
 
+// ------------------------------------------------------------------------------ touched faces
+
+TEST(coupler_oracle, BoxCellsSplitTouchedFromSurfaceFaces) {
+  const Vec<2> lower(0, 0), upper(1.0, 0.6);
+  const auto grid = coupler::padded_grid<2>(lower, upper, 0.1);
+  const auto floor_touched = coupler::box_cells<2>(grid, lower, upper, coupler::face_bit(1, 0));
+  const auto untouched = coupler::box_cells<2>(grid, lower, upper, 0);
+  EXPECT_EQ(untouched.boundary, coupler::cells_outside_box<2>(grid, lower, upper));
+  EXPECT_EQ(std::count(untouched.solid.begin(), untouched.solid.end(), 1), 0);
+  const auto at = [&](const coupler::BoxCells& b, double x, double y) {
+    const std::size_t c = coupler::cell_index(grid, coupler::cell_of(grid, Vec<2>(x, y)));
+    return std::array<int, 2>{b.boundary[c], b.solid[c]};
+  };
+  using Kind = std::array<int, 2>;
+  EXPECT_EQ(at(floor_touched, 0.55, 0.25), (Kind{0, 0}));    // inside
+  EXPECT_EQ(at(floor_touched, 0.55, -0.05), (Kind{0, 1}));   // below the touched floor: solid
+  EXPECT_EQ(at(floor_touched, 0.55, -0.25), (Kind{0, 1}));
+  EXPECT_EQ(at(floor_touched, -0.05, 0.25), (Kind{1, 0}));   // beyond the untouched side wall
+  EXPECT_EQ(at(floor_touched, -0.05, -0.05), (Kind{1, 0}));  // the corner: the untouched face wins
+  EXPECT_EQ(at(floor_touched, 0.55, 0.65), (Kind{1, 0}));    // above the untouched top
+  EXPECT_EQ(at(untouched, 0.55, -0.05), (Kind{1, 0}));
+
+  // 3D: the z faces are bits 4 and 5; touching every face leaves no boundary cell at all
+  const Vec<3> lo3(0, 0, 0), hi3(0.4, 0.3, 0.5);
+  const auto g3 = coupler::padded_grid<3>(lo3, hi3, 0.1);
+  const auto zlo = coupler::box_cells<3>(g3, lo3, hi3, coupler::face_bit(2, 0));
+  const auto at3 = [&](const coupler::BoxCells& b, const Vec<3>& x) {
+    const std::size_t c = coupler::cell_index(g3, coupler::cell_of(g3, x));
+    return Kind{b.boundary[c], b.solid[c]};
+  };
+  EXPECT_EQ(at3(zlo, Vec<3>(0.15, 0.15, -0.05)), (Kind{0, 1}));
+  EXPECT_EQ(at3(zlo, Vec<3>(0.15, 0.15, 0.55)), (Kind{1, 0}));
+  EXPECT_EQ(at3(zlo, Vec<3>(0.15, -0.05, -0.05)), (Kind{1, 0}));
+  const auto all = coupler::box_cells<3>(g3, lo3, hi3, 0x3f);
+  EXPECT_EQ(std::count(all.boundary.begin(), all.boundary.end(), 1), 0);
+  EXPECT_EQ(static_cast<std::size_t>(std::count(all.solid.begin(), all.solid.end(), 1)),
+            coupler::num_cells(g3) - 4 * 3 * 5);
+}
+
+/// A box of material (points in every cell of x in [0, 3], y in [0, 1.2]) in a container
+/// [0, 3] x [0, 2], the oracle run to its fixed point, with the floor (ylo) touched or not and
+/// optionally a discrete region (an orifice column) over x in [1.4, 1.6], y < 0.4, the cells below
+/// the floor too. Depth 0.3, band 0.1: continuum where the distance exceeds 0.4.
+struct TouchedFloor {
+  coupler::GridGeometry<2> grid;
+  coupler::OracleResult result;
+  std::vector<std::uint8_t> region;
+  std::int8_t zone_at(double x, double y) const {
+    return result.zones[coupler::cell_index(grid, coupler::cell_of(grid, Vec<2>(x, y)))];
+  }
+};
+
+TouchedFloor touched_floor(bool touched, bool orifice, double top = 1.2) {
+  TouchedFloor t;
+  const Vec<2> lower(0, 0), upper(3.0, 2.0);
+  t.grid = coupler::padded_grid<2>(lower, upper, 0.1);
+  const std::size_t n = coupler::num_cells(t.grid);
+  std::vector<std::uint8_t> points;
+  t.region.assign(n, 0);
+  for (std::size_t c = 0; c < n; ++c) {
+    const Vec<2> x = coupler::cell_center(t.grid, coupler::cell_coords(t.grid, c));
+    if ((x.array() > lower.array()).all() && x[0] < upper[0] && x[1] < top) coupler::mark_point_cell<2>(t.grid, x, points);
+    t.region[c] = orifice && x[0] > 1.4 && x[0] < 1.6 && x[1] < 0.4;
+  }
+  coupler::BoxCells box = coupler::box_cells<2>(t.grid, lower, upper, touched ? coupler::face_bit(1, 0) : 0u);
+  for (std::size_t c = 0; c < n; ++c)
+    if (t.region[c]) box.add_boundary(c);
+  const auto s = band_settings();
+  std::vector<std::int8_t> zones;
+  for (int k = 0; k < 4; ++k) {
+    t.result = coupler::run_oracle<2>(t.grid, {}, points, box.boundary, zones, {}, s, box.solid);
+    zones = t.result.zones;
+  }
+  // solid cells never hold anything: always discrete, and no distance for the zones
+  for (std::size_t c = 0; c < n; ++c)
+    if (box.solid[c]) {
+      EXPECT_EQ(t.result.zones[c], coupler::kDiscrete);
+      EXPECT_LT(t.result.distance[c], 0);
+    }
+  return t;
+}
+
+TEST(coupler_oracle, ContinuumReachesTouchedFloorAndStaysAwayFromUntouchedOne) {
+  const double hi = 0.4;  // depth + band
+  for (bool touched : {false, true}) {
+    const TouchedFloor t = touched_floor(touched, false);
+    double lowest = 1e9;
+    std::size_t continuum = 0;
+    for (std::size_t c = 0; c < t.result.zones.size(); ++c) {
+      if (t.result.zones[c] != coupler::kContinuum) continue;
+      const Vec<2> x = coupler::cell_center(t.grid, coupler::cell_coords(t.grid, c));
+      lowest = std::min(lowest, x[1]);
+      ++continuum;
+      // the other faces and the free top stay surfaces
+      EXPECT_GT(std::min({x[0], 3.0 - x[0], 1.2 - x[1]}), hi) << "touched " << touched << " at " << x.transpose();
+    }
+    if (touched) {
+      EXPECT_NEAR(lowest, 0.05, 1e-9);  // the floor row
+      EXPECT_EQ(t.zone_at(1.5, 0.05), coupler::kContinuum);
+      EXPECT_EQ(t.zone_at(0.45, 0.05), coupler::kContinuum);
+      EXPECT_EQ(t.zone_at(0.35, 0.05), coupler::kHybrid);  // still away from the untouched side wall
+      EXPECT_NEAR(t.result.distance[coupler::cell_index(t.grid, coupler::cell_of(t.grid, Vec<2>(1.5, 0.05)))],
+                  1.15, 1e-9);  // to the free top, not to the floor
+    } else {
+      EXPECT_NEAR(lowest, 0.45, 1e-9);  // depth + band above the floor
+      EXPECT_EQ(t.zone_at(1.5, 0.05), coupler::kDiscrete);
+      EXPECT_EQ(t.zone_at(1.5, 0.25), coupler::kHybrid);
+    }
+    EXPECT_EQ(continuum, touched ? 22u * 8u : 22u * 4u);  // x in (0.4, 2.6), y up to 0.8
+  }
+}
+
+TEST(coupler_oracle, DiscreteRegionOverTouchedFloorStillKeepsContinuumAway) {
+  const TouchedFloor t = touched_floor(true, true);
+  std::size_t floor_continuum = 0;
+  for (std::size_t c = 0; c < t.result.zones.size(); ++c) {
+    const Vec<2> x = coupler::cell_center(t.grid, coupler::cell_coords(t.grid, c));
+    if (t.region[c]) EXPECT_EQ(t.result.zones[c], coupler::kDiscrete);
+    if (t.result.zones[c] != coupler::kContinuum) continue;
+    // nearest region cell centre, minus half a cell: more than depth + band
+    double nearest = 1e9;
+    for (std::size_t r = 0; r < t.region.size(); ++r)
+      if (t.region[r])
+        nearest = std::min(nearest, (coupler::cell_center(t.grid, coupler::cell_coords(t.grid, r)) - x).norm());
+    EXPECT_GT(nearest - 0.05, 0.4) << "continuum cell at " << x.transpose();
+    floor_continuum += x[1] < 0.1;
+  }
+  EXPECT_GT(floor_continuum, 10u);  // away from the orifice the floor row is still continuum
+  EXPECT_EQ(t.zone_at(1.5, 0.05), coupler::kDiscrete);
+  EXPECT_EQ(t.zone_at(1.25, 0.05), coupler::kDiscrete);  // 0.15 from the region
+  EXPECT_EQ(t.zone_at(1.15, 0.05), coupler::kHybrid);    // 0.25
+  EXPECT_EQ(t.zone_at(1.5, -0.05), coupler::kDiscrete);  // the region below the floor: a boundary
+  EXPECT_LT(t.result.distance[coupler::cell_index(t.grid, coupler::cell_of(t.grid, Vec<2>(1.5, -0.05)))], 0);
+  EXPECT_EQ(t.zone_at(0.85, 0.05), coupler::kContinuum);
+}
+
+TEST(coupler_oracle, ThinLayerOnTouchedFloorStaysDiscrete) {
+  // A runout thinner than depth + band on a touched floor: its floor row lies in the band (0.25
+  // below the free top) but no cell wants continuum, so it is discrete too (next_zones). The
+  // solid cells below the floor lie deeper than depth + band below the top, and must not count
+  // as continuum nearby.
+  const TouchedFloor t = touched_floor(true, false, 0.3);
+  EXPECT_EQ(coupler::zone_counts(t.result.zones)[coupler::kContinuum], 0u);
+  EXPECT_EQ(coupler::zone_counts(t.result.zones)[coupler::kHybrid], 0u);
+  EXPECT_EQ(t.zone_at(1.5, 0.05), coupler::kDiscrete);
+}
+
 TEST(coupler_oracle, OneUpdateFromAllDiscreteNeverYieldsContinuum) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> dist(-1, 3);

@@ -6,7 +6,8 @@
 //      sums of several DEM ranks can be added), 1 in cells holding material points;
 //   2. material = phi >= surface_packing; signed distance of each cell centre to the free
 //      surface (and to walls / intruders, passed as boundary cells), by an exact Euclidean
-//      distance transform;
+//      distance transform; faces of the container the continuum may touch are no surface
+//      (the cells beyond them count as material and stay discrete: box_cells);
 //   3. zones from the distance with the band [L - h, L + h] and the previous zones, so that a
 //      cell always passes through hybrid and does not flicker; hybrid only near a continuum.
 //
@@ -169,18 +170,78 @@ std::vector<double> squared_distance_transform(const Eigen::Matrix<int, D, 1>& c
   return g;
 }
 
-/// Cells whose centre lies outside the box [lower, upper] (the padding of padded_grid): pass
-/// them as boundary cells to signed_distance so that the walls of the box act as surfaces.
+/// A face of the box, as a bit of a face mask (ContinuumSettings::touched_faces, the fix's
+/// `touch`): side 0 is the lower face of the axis, 1 the upper.
+inline constexpr std::uint32_t face_bit(int axis, int side) { return 1u << (2 * axis + side); }
+
+/// Cells whose centre lies outside the box [lower, upper] (the padding of padded_grid, or the
+/// part of the box beyond the continuum's container), by the faces they lie beyond:
+///   boundary: beyond a face the oracle counts as a surface of the material (a discrete
+///             boundary: an orifice's floor, a blade). Pass them to signed_distance as boundary
+///             cells: the material is kept depth + band away from that face;
+///   solid:    beyond faces the continuum may touch only (bits of `touched`, face_bit; a floor or
+///             wall whose continuum wall law stands for the DEM wall). They count as material for
+///             the distance, so that they do not pull it down (the continuum reaches the face),
+///             and are always discrete: they hold nothing (solid_material, keep_solid_outside).
+/// A cell beyond a touched and an untouched face (a corner) is a boundary cell.
+struct BoxCells {
+  std::vector<std::uint8_t> boundary, solid;
+  /// Cell c is a boundary of the material whatever face it lies beyond (a cell of a discrete
+  /// region: it wins over a touched face, e.g. the orifice in a silo floor the continuum touches).
+  void add_boundary(std::size_t c) { boundary.at(c) = 1, solid.at(c) = 0; }
+};
+
+template <int D>
+BoxCells box_cells(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& lower,
+                   const Eigen::Matrix<double, D, 1>& upper, std::uint32_t touched) {
+  const std::size_t n = num_cells(grid);
+  BoxCells out;
+  out.boundary.assign(n, 0);
+  out.solid.assign(n, 0);
+  for (std::size_t c = 0; c < n; ++c) {
+    const auto x = cell_center(grid, cell_coords(grid, c));
+    bool beyond_touched = false, beyond_surface = false;
+    for (int a = 0; a < D; ++a)
+      for (int side = 0; side < 2; ++side) {
+        if (!(side ? x[a] > upper[a] : x[a] < lower[a])) continue;
+        (touched & face_bit(a, side) ? beyond_touched : beyond_surface) = true;
+      }
+    out.boundary[c] = beyond_surface;
+    out.solid[c] = beyond_touched && !beyond_surface;
+  }
+  return out;
+}
+
+/// The boundary cells of box_cells with every face a surface: pass them to signed_distance so
+/// that the walls of the box act as surfaces.
 template <int D>
 std::vector<std::uint8_t> cells_outside_box(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& lower,
                                             const Eigen::Matrix<double, D, 1>& upper) {
-  const std::size_t n = num_cells(grid);
-  std::vector<std::uint8_t> out(n);
-  for (std::size_t c = 0; c < n; ++c) {
-    const auto x = cell_center(grid, cell_coords(grid, c));
-    out[c] = !((x.array() >= lower.array()).all() && (x.array() <= upper.array()).all());
-  }
-  return out;
+  return box_cells<D>(grid, lower, upper, 0).boundary;
+}
+
+/// The material of the oracle: cells packed at least to surface_packing, and the solid cells
+/// beyond faces the continuum may touch (may be empty: none).
+inline std::vector<std::uint8_t> solid_material(const std::vector<double>& packing, double surface_packing,
+                                                const std::vector<std::uint8_t>& solid) {
+  if (!solid.empty() && solid.size() != packing.size())
+    throw std::invalid_argument("solid_material: mask of the wrong size");
+  std::vector<std::uint8_t> material(packing.size());
+  for (std::size_t c = 0; c < material.size(); ++c)
+    material[c] = packing[c] >= surface_packing || (!solid.empty() && solid[c]);
+  return material;
+}
+
+/// Solid cells (beyond faces the continuum may touch) are no place for material, whatever their
+/// distance: it is set to -inf after the distance transform, so that they are discrete zones
+/// (they hold nothing: no points behind the wall, and grains that cross the face, e.g. under a
+/// silo floor, stay grains) and want no continuum (a hybrid cell by a touched wall still needs a
+/// real continuum near to stay hybrid, next_zones).
+inline void keep_solid_outside(std::vector<double>& distance, const std::vector<std::uint8_t>& solid) {
+  if (solid.empty()) return;
+  if (solid.size() != distance.size()) throw std::invalid_argument("keep_solid_outside: mask of the wrong size");
+  for (std::size_t c = 0; c < distance.size(); ++c)
+    if (solid[c]) distance[c] = -std::numeric_limits<double>::infinity();
 }
 
 /// Signed distance, in length units, from each cell centre to the surface of the material.
@@ -295,18 +356,19 @@ struct OracleResult {
 };
 
 /// One oracle update from the summed grain volumes per cell (all ranks added), the cells
-/// holding material points, the boundary cells (walls/intruders/cells_outside_box; may be
-/// empty), the previous zones (empty: all discrete) and the shear rate (may be empty).
+/// holding material points, the boundary cells (walls/intruders/box_cells' boundary; may be
+/// empty), the previous zones (empty: all discrete), the shear rate (may be empty) and the
+/// solid cells beyond faces the continuum may touch (box_cells' solid; may be empty).
 template <int D>
 OracleResult run_oracle(const GridGeometry<D>& grid, const std::vector<double>& grain_volume_per_cell,
                         const std::vector<std::uint8_t>& has_points, const std::vector<std::uint8_t>& boundary_cells,
                         const std::vector<std::int8_t>& previous, const std::vector<double>& shear_rate,
-                        const OracleSettings& settings) {
+                        const OracleSettings& settings, const std::vector<std::uint8_t>& solid_cells = {}) {
   OracleResult r;
   r.packing = packing_fraction<D>(grid, grain_volume_per_cell, has_points);
-  std::vector<std::uint8_t> material(r.packing.size());
-  for (std::size_t c = 0; c < material.size(); ++c) material[c] = r.packing[c] >= settings.surface_packing;
+  const auto material = solid_material(r.packing, settings.surface_packing, solid_cells);
   r.distance = signed_distance<D>(grid, material, boundary_cells);
+  keep_solid_outside(r.distance, solid_cells);
   r.zones = next_zones<D>(grid, previous, r.distance, r.packing, shear_rate, settings);
   return r;
 }

@@ -98,6 +98,9 @@ struct ContinuumSettings {
   /// Walls of the continuum (planes with wall_contact); the box faces unless the fix's
   /// `container` keyword puts them inside the box (e.g. on a DEM floor above the box bottom).
   double container_lo[3] = {0, 0, 0}, container_hi[3] = {0, 0, 0};
+  /// Container faces the continuum may touch (face_bit in oracle.hpp; the fix's `touch`): the zone
+  /// oracle does not count them as surfaces. The others are discrete boundaries (the default).
+  std::uint32_t touched_faces = 0;
   double cfl = 0.5;                   ///< MPM substep = cfl * dx / (c + |v|max)
   double grain_weight = 0.5;          ///< share of a hybrid cell's mass its grains keep
   double pic = 1.0;                   ///< grain update: 1 = take the agreed field, 0 = impulse only
