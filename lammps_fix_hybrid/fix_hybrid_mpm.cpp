@@ -94,7 +94,7 @@ const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
     "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
     "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
-    "seed, steps_per_contact, material";
+    "seed, steps_per_contact, material, relax";
 
 // Container faces in the order of coupler::face_bit (axis, then lo/hi): the values of `touch`
 const char *const kFaceNames[6] = {"xlo", "xhi", "ylo", "yhi", "zlo", "zhi"};
@@ -151,7 +151,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
     converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle), new_grain_mask(1),
     polydispersity(0.0), timestep_checked(false), fewest_steps_warned(BIG),
-    warn_steps_per_contact(coupler::kWarnStepsPerContact), restored(false), state_loaded(false),
+    warn_steps_per_contact(coupler::kWarnStepsPerContact), relax_time(-1.0), restored(false), state_loaded(false),
     clock_time(0.0), clock_step(-1), clock_dt(0.0),
     stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1),
     ledger_started(false), continuum_start(0.0)
@@ -288,7 +288,12 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     else if (set_oracle_keyword(key, val)) {
     } else if (key == "grain_type") grain_type = integer(key, val);
     else if (key == "seed") template_seed = integer(key, val);
-    else if (key == "steps_per_contact") {
+    else if (key == "relax") {
+      relax_time = number(key, val);
+      if (!(relax_time >= 0.0))
+        illegal(fmt::format("keyword 'relax' (relaxation time of the velocity agreement, s; 0 = close the gap at "
+                            "every exchange) must be >= 0, not {}", val));
+    } else if (key == "steps_per_contact") {
       warn_steps_per_contact = number(key, val);
       if (!(warn_steps_per_contact > coupler::kUnstableStepsPerContact))
         illegal(fmt::format("keyword 'steps_per_contact' (warn below this many DEM steps per contact) must exceed "
@@ -645,7 +650,8 @@ void FixHybridMPM::connect()
   // With cells under 2 grain diameters the oracle's packing fraction per cell counts one or two
   // grains and a cell's rests land on a few points: a published 2D collapse with 1.74 d cells
   // went non-finite as its continuum shrank (issue 14), while the same scene ran with 5 d cells.
-  if (adapt_every > 0 && cell < kSmallestCellInGrains * settings->grain_diameter)
+  // (2 % slack: a deck's cell of 2 nominal diameters passes whatever its grains' sampled mean)
+  if (adapt_every > 0 && cell < 0.98 * kSmallestCellInGrains * settings->grain_diameter)
     error->all(FLERR, fmt::format("Fix hybrid/mpm: cell {} is under {} grain diameters (mean diameter {:.4g}): adaptive "
                                   "zones need cells that hold several grains. Use cell {:.4g} or more",
                                   cell, kSmallestCellInGrains, settings->grain_diameter,
@@ -675,6 +681,13 @@ void FixHybridMPM::connect()
       if (g)
         for (int d = 0; d < 3; d++) settings->gravity[d] += g[d];
     }
+  // the agreement's relaxation time: half the stiffest contact's duration, the time over which
+  // grains in contact equalise their velocities (10 steps where the contact time is unknown)
+  if (relax_time < 0.0) {
+    std::string why;
+    const double steps = dem_steps_per_contact(why);
+    settings->agreement_time = 0.5 * (steps < BIG ? steps : 20.0) * update->dt;
+  } else settings->agreement_time = relax_time;
   hello.continuum = *settings;
   for (int d = 0; d < 3; d++)
     for (int side = 0; side < 2; side++) {

@@ -126,6 +126,7 @@ class FixHybridMPM : public Fix {
   bool timestep_checked;                  // the DEM time step was checked (and logged) once
   double fewest_steps_warned;             // steps per contact at the last warning
   double warn_steps_per_contact;          // warn below this many DEM steps per contact (keyword steps_per_contact)
+  double relax_time;                      // keyword relax (s; < 0: half the stiffest contact's duration)
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
   std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)

@@ -518,6 +518,13 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   // answer: the common velocity; dem_mass_ keeps m_dem for lambda / m_dem.
   mismatch_ = 0;
   shared_nodes_ = 0;
+  // The agreement closes the gap between the sides' node velocities as a relaxation of time
+  // agreement_time: by the share 1 - exp(-T / agreement_time) over an interval T (all of it
+  // when agreement_time is 0, the reference method). Closing it whole at every exchange damps
+  // the grains' fluctuations once per exchange, so the flow depended on the exchange interval
+  // (collapse runout -26 % exchanging every step, -9 % every 5; docs/fix_hybrid_mpm.md).
+  const double tau = hello_.continuum.agreement_time;
+  const double closing = tau > 0 && interval_ > 0 ? -std::expm1(-interval_ / tau) : 1.0;
   // the energy ledger: the continuum's own steps since the last bracket, then the agreement
   const double energy_before = grid_energy();
   ledger_.physics += energy_before - ledger_.energy;
@@ -544,10 +551,14 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
     if (m_mpm > 0 && m_dem > 0) {
       const Vec<D> v_mpm = grid.momentum[k];  // a velocity after the grid update
       mismatch_ = std::max(mismatch_, (v_dem - v_mpm).norm());
-      common = (m_mpm * v_mpm + m_dem * v_dem) / (m_mpm + m_dem);
-      solver_.constrain_velocity(k, common);
-      grid.momentum[k] = common;
-      agreement_change += 0.5 * m_mpm * (common.squaredNorm() - v_mpm.squaredNorm());
+      Vec<D> agreed = (m_mpm * v_mpm + m_dem * v_dem) / (m_mpm + m_dem);
+      solver_.constrain_velocity(k, agreed);
+      // each side moves the share `closing` of the way to the agreed velocity (both by the same
+      // momentum, opposite: exact); common is the grains' side from here on
+      const Vec<D> v_mpm_new = v_mpm + closing * (agreed - v_mpm);
+      common = v_dem + closing * (agreed - v_dem);
+      grid.momentum[k] = v_mpm_new;
+      agreement_change += 0.5 * m_mpm * (v_mpm_new.squaredNorm() - v_mpm.squaredNorm());
       ++shared_nodes_;
       if (gain > 0) {
         // A force set when the node held more mass would accelerate what is left there

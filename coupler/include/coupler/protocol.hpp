@@ -104,6 +104,9 @@ struct ContinuumSettings {
   double cfl = 0.5;                   ///< MPM substep = cfl * dx / (c + |v|max)
   double grain_weight = 0.5;          ///< share of a hybrid cell's mass its grains keep
   double pic = 1.0;                   ///< grain update: 1 = take the agreed field, 0 = impulse only
+  /// s: the agreement closes the sides' velocity gap by 1 - exp(-T / agreement_time) over an
+  /// exchange interval T (0 = all of it at every exchange)
+  double agreement_time = 0.0;
   /// Gain of the support force between exchanges (0 = none): each exchange adds
   /// support_gain * lambda / interval to the force the sides exert on each other at a node.
   double support_gain = 1.0;
