@@ -16,6 +16,7 @@ Every hybrid row also gives the energy ledger's closure (largest residual over t
 energy figure, tools/lammps_log.py).
 
 Usage: bench/adaptive_accuracy.py [--np 2] [--quick] [--scenes collapse_2d,silo_2d,...]
+                                  [--exchanges 1,5,10,20] [--oracles 100,300,1000]
 Writes bench/results/adaptive_accuracy.json (a list `rows`) and .md.
 """
 from __future__ import annotations
@@ -46,10 +47,10 @@ ORACLES = (100, 300, 1000)                      # at the exchange interval EXCHA
 EXCHANGE_DEFAULT, ORACLE_DEFAULT = 10, 100      # the decks' defaults
 
 
-def numerics(quick: bool) -> list[tuple[int, int]]:
-    if quick:
-        return [(EXCHANGE_DEFAULT, ORACLE_DEFAULT)]
-    pairs = [(e, ORACLE_DEFAULT) for e in EXCHANGES] + [(EXCHANGE_DEFAULT, o) for o in ORACLES]
+def numerics(exchanges, oracles) -> list[tuple[int, int]]:
+    """Each exchange interval at the default oracle interval, each oracle interval at the
+    default exchange interval."""
+    pairs = [(e, ORACLE_DEFAULT) for e in exchanges] + [(EXCHANGE_DEFAULT, o) for o in oracles]
     return list(dict.fromkeys(pairs))
 
 
@@ -172,6 +173,10 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="reduced sizes, default numerics only")
     ap.add_argument("--scenes", default="collapse_2d,silo_2d,collapse_3d,silo_3d",
                     help="comma-separated: collapse_2d, silo_2d, collapse_3d, silo_3d")
+    ap.add_argument("--exchanges", default=",".join(map(str, EXCHANGES)),
+                    help="exchange intervals to run (at the default oracle interval)")
+    ap.add_argument("--oracles", default=",".join(map(str, ORACLES)),
+                    help="oracle intervals to run (at the default exchange interval)")
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "adaptive_accuracy.md")
     args = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -179,7 +184,8 @@ def main() -> int:
     unknown = set(scenes) - {"collapse_2d", "silo_2d", "collapse_3d", "silo_3d"}
     if unknown:
         ap.error(f"unknown scene(s) {', '.join(sorted(unknown))}")
-    pairs = numerics(args.quick)
+    pairs = [(EXCHANGE_DEFAULT, ORACLE_DEFAULT)] if args.quick else \
+        numerics([int(v) for v in args.exchanges.split(",")], [int(v) for v in args.oracles.split(",")])
     width = {2.0: 0.05 if args.quick else 0.1, 0.5: 0.1 if args.quick else 0.2}
     rows = []
     with tempfile.TemporaryDirectory(prefix="adaptive_accuracy_") as tmp:
@@ -195,7 +201,8 @@ def main() -> int:
             rows += silo_3d(work, args.np_)
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     lines = ["# Adaptive hybrid against pure LAMMPS DEM: accuracy and independence of the numerics", "",
-             f"`bench/adaptive_accuracy.py{' --quick' if args.quick else ''} --np {args.np_} --scenes {args.scenes}`, "
+             f"`bench/adaptive_accuracy.py{' --quick' if args.quick else ''} --np {args.np_} --scenes {args.scenes}"
+             f"{'' if args.quick else f' --exchanges {args.exchanges} --oracles {args.oracles}'}`, "
              f"{stamp}; {args.np_} LAMMPS rank(s) for DEM and hybrid alike, plus one MPM process for the hybrid, "
              "on a 2-core machine, side by side in one run. Errors are the hybrid's against the DEM from the same "
              "packing; the noise floor is the DEM from another packing against it (same measure). The hybrid "
