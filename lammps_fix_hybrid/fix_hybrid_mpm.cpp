@@ -2,7 +2,7 @@
    fix hybrid/mpm (hybrid-granular project)
 
    Couples the grains of LAMMPS to a continuum in the MPM process
-   (mpm_solver --coupled) as in DESIGN.md section 5:
+   (mpm_solver --coupled) as in docs/design.md section 5:
    - at the first step of the first run, grains in the continuum regions
      become material points that carry exactly their mass, momentum and
      angular momentum (and their Love-Weber stress); grains in hybrid cells
@@ -331,7 +331,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   check_oracle();
   // With moving zones the hybrid band lies inside the flow: taking the agreed field there
   // (pic 1) erases the grains' fluctuations at every exchange and damps the flow (a column
-  // collapse ran out 35 % short); the impulse-only rule of DESIGN.md section 5 keeps them.
+  // collapse ran out 35 % short); the impulse-only rule of docs/design.md section 5 keeps them.
   if (adapt_every > 0 && !pic_given) c.pic = 0.0;
   if (grain_type > atom->ntypes)
     illegal(fmt::format("keyword 'grain_type' {} is not an atom type (1 to {})", grain_type, atom->ntypes));
@@ -456,7 +456,7 @@ void FixHybridMPM::check_dem_timestep(const std::string &when)
 }
 
 /* ----------------------------------------------------------------------
-   the DEM side's stability (DESIGN.md section 3): steps per contact of the
+   the DEM side's stability (docs/design.md section 3): steps per contact of the
    stiffest pair, the two lightest grains (infinite for pair styles it cannot
    check); `why` explains it and names the safe step. Grains in hybrid cells
    carry only their share `weight` of their mass and vibrate faster, so while

@@ -1,5 +1,5 @@
 """Planar column collapse with the pure MPM solver against the published runout
-laws (Lube et al. 2005, Lajeunesse et al. 2005; DESIGN.md section 6)."""
+laws (Lube et al. 2005, Lajeunesse et al. 2005; docs/design.md section 6)."""
 from __future__ import annotations
 
 import numpy as np

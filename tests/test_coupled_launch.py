@@ -149,7 +149,7 @@ def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_prog
 
 def safe_step(share: float) -> float:
     """tc/20 of the handshake deck's stiffest pair (kn = 1000 N/m, gamma_n = 500 1/s, 2 mm grains
-    of 2500 kg/m^3) at `share` of their mass: tc = pi / sqrt(kn/m_eff - gamma_n^2/4) (DESIGN.md
+    of 2500 kg/m^3) at `share` of their mass: tc = pi / sqrt(kn/m_eff - gamma_n^2/4) (docs/design.md
     section 3), computed here independently of the fix."""
     m_eff = 0.5 * share * 2500 * 4 / 3 * math.pi * 0.001 ** 3
     return math.pi / math.sqrt(1000 / m_eff - 0.25 * 500 ** 2) / 20

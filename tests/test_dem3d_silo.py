@@ -27,7 +27,7 @@ So LAMMPS and LIGGGHTS must agree within CODE_TOLERANCE = 10 %: 2.6 x the larges
 measured (3.8 %), about 3 x the spread between packings of one code (the two codes' chaotic
 trajectories diverge within the first collisions, so the difference is noise of the kind
 that separates packings, not a bias: its mean over the seven pairs is -0.7 %).
-Beverloo (DESIGN.md sec. 6, C = 0.58, k = 1.5, rho_b = phi rho, D = the inscribed diameter of
+Beverloo (docs/design.md sec. 6, C = 0.58, k = 1.5, rho_b = phi rho, D = the inscribed diameter of
 the lattice hole, 6.3 d): the measured rate is ~1.4 x higher. Expected direction: the opening
 between the edge spheres is wider than its inscribed circle, the silo is narrow (W = 2.4 D,
 walls closer than Nedderman's W > D + 30 d), the spheres have no rolling resistance, and

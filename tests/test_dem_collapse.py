@@ -1,9 +1,9 @@
 """Planar column collapse with pure DEM (stock LAMMPS, input_decks/column_collapse/dem_2d.lmp)
-against the published runout laws (Lube et al. 2005, Lajeunesse et al. 2005; DESIGN.md
+against the published runout laws (Lube et al. 2005, Lajeunesse et al. 2005; docs/design.md
 sections 3 and 6), at reduced size: columns of about 1300 grains of d = 2 mm
 (L0 = 25 d at a = 2, L0 = 50 d at a = 0.5), 10-20 s each on one core.
 
-Model (DESIGN.md section 3): linear spring-dashpot with tangential history
+Model (docs/design.md section 3): linear spring-dashpot with tangential history
 (gran/hooke/history), restitution e = 0.5, Coulomb friction mu = 0.5 between grains, on
 the rough floor of frozen grains and on the back wall; kt = 2/7 kn; dt = tc/20.
 The settled column is cached ($HYBRID_CACHE/dem_column), so reruns only redo the collapse.
@@ -41,7 +41,7 @@ def test_dem_runout_matches_published_law(tmp_path, lmp, aspect, width):
     # 0.15 sqrt(g d) (the odd detached grain may still be rolling away on the floor)
     assert res.at_rest, res.summary()
     assert res.max_speed_deposit < 0.02, res.summary()
-    # stiff enough contacts: overlaps stay below 1 % of d (DESIGN.md section 3)
+    # stiff enough contacts: overlaps stay below 1 % of d (docs/design.md section 3)
     assert res.max_overlap_initial < 0.01
     assert res.max_overlap_final < 0.01
     # the collapse lowered the column and spread it along the floor

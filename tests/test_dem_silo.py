@@ -1,9 +1,9 @@
 """Planar flat-bottomed silo discharge with pure DEM (stock LAMMPS, input_decks/silo/dem_2d.lmp)
-against the 2D Beverloo law (DESIGN.md sections 3 and 6; tools/dem_silo.py), at reduced size:
+against the 2D Beverloo law (docs/design.md sections 3 and 6; tools/dem_silo.py), at reduced size:
 W = 0.06 m = 30 d, filled to H = 0.08 m, orifice D = 0.016 m = 8 d, about 1200 disks of
 d = 2 mm, discharged until 60 % of the mass has left (~0.65 s); ~25 s on one core.
 
-Model (DESIGN.md section 3): linear spring-dashpot with tangential history
+Model (docs/design.md section 3): linear spring-dashpot with tangential history
 (gran/hooke/history), restitution e = 0.5, Coulomb friction mu = 0.5 between grains, on the
 side walls and on the floor; kt = 2/7 kn; dt = tc/20. The settled silo is built in the test's
 own cache directory, so that the closed-orifice checks always see a preparation of this run.
@@ -59,7 +59,7 @@ def test_closed_orifice_holds_the_settled_grains(silo):
     assert res.mass0 == pytest.approx(res.settled_mass, rel=1e-9)
     # a random dense packing of disks (not a crystal, not a loose heap)
     assert 0.78 < res.packing < 0.86, res.summary()
-    # stiff enough contacts: overlaps below 1 % of d (DESIGN.md section 3)
+    # stiff enough contacts: overlaps below 1 % of d (docs/design.md section 3)
     assert res.max_overlap_initial < 0.01, res.summary()
 
 

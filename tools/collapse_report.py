@@ -22,7 +22,7 @@ against LAMMPS.
 Errors against the reference: the final surface (RMS height difference from the wall to the
 farther front, over H0), the runout (Lf - L0)/L0 (relative difference), the kinetic-energy
 history (RMS difference of KE(t) over the reference's duration, over the reference's peak; grains
-plus points for the hybrid), and whether the runout lies in the published range (DESIGN.md
+plus points for the hybrid), and whether the runout lies in the published range (docs/design.md
 section 6). Speedup: the reference's wall time over the
 run's, side by side in this job. Writes <out>/report.md, report.json, error_vs_time.png
 (surface error against wall time, the noise floor as a band), profiles.png and

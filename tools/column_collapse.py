@@ -1,5 +1,5 @@
 """Planar granular column collapse: scene generation, runout measurement and
-the published runout laws (DESIGN.md section 6).
+the published runout laws (docs/design.md section 6).
 
 Used by the test suite, the main job and the benchmarks, so that all of them
 run the same scene.

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Discharge of a 3D flat-bottomed silo of square cross-section through a circular orifice
-(DESIGN.md sections 3 and 6), in three forms sharing one parameter set:
+(docs/design.md sections 3 and 6), in three forms sharing one parameter set:
 
     --code lammps    input_decks/silo/dem_3d.lmp with Debian's stock LAMMPS (`lmp`)
     --code liggghts  input_decks/silo/liggghts_3d.in with LIGGGHTS 3.8 (`liggghts`)
@@ -21,7 +21,7 @@ the bottom of the floor layer (y = -d), still falling or deleted. The steady rat
 least-squares slope of M_out(t) over the window of tools/dem_silo.py's fit_rate (from
 TRANSIENT = 0.1 s after the opening until FIT_FMAX of the mass has left, or the end).
 
-3D Beverloo law (DESIGN.md section 6): W = C rho_b sqrt(g) (D - k d)^(5/2) with C = 0.58,
+3D Beverloo law (docs/design.md section 6): W = C rho_b sqrt(g) (D - k d)^(5/2) with C = 0.58,
 k = 1.5, rho_b = phi rho, phi the packing fraction of the settled silo measured away from
 the walls, the floor and the free surface. D is the inscribed diameter of the orifice in the
 floor lattice (D_eff >= the nominal D; the hole's edge is the floor spheres' surface, and the
@@ -64,7 +64,7 @@ HYBRID_DECK = REPO / "input_decks" / "silo" / "hybrid_3d.lmp"
 EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
 
 G = 9.81
-BEVERLOO_C = 0.58            # DESIGN.md section 6 (3D, circular orifice)
+BEVERLOO_C = 0.58            # docs/design.md section 6 (3D, circular orifice)
 BEVERLOO_K = 1.5
 PACKING_MARGIN = 3.0         # the packing fraction is measured this many d from walls, floor, top
 DEFAULTS = dict(width=0.03, height=0.04, orifice=0.012, d=0.002, rho=2500.0, tout=0.01)

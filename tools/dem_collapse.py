@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Pure-DEM reference of the planar granular column collapse (DESIGN.md sections 3 and 6).
+"""Pure-DEM reference of the planar granular column collapse (docs/design.md sections 3 and 6).
 
 Runs input_decks/column_collapse/dem_2d.lmp with Debian's stock LAMMPS (`lmp`), reads the
 final dump and measures the normalised runout (Lf - L0)/L0 and the final surface profile,

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Pure-DEM reference of the discharge of a planar (2D) flat-bottomed silo (DESIGN.md
+"""Pure-DEM reference of the discharge of a planar (2D) flat-bottomed silo (docs/design.md
 sections 3 and 6).
 
 Runs input_decks/silo/dem_2d.lmp with Debian's stock LAMMPS (`lmp`): a silo of width W
@@ -27,9 +27,9 @@ line relative to the mass discharged over the window.
 
 2D Beverloo law. For a slot of width D in a planar silo the mass rate per unit depth is
     W = C rho_b sqrt(g) (D - k d)^(3/2),     rho_b = phi rho,
-the 2D form of DESIGN.md section 6's law (which is the 3D one, exponent 5/2). phi is the
+the 2D form of docs/design.md section 6's law (which is the 3D one, exponent 5/2). phi is the
 area fraction of the settled packing, measured here away from the walls, the floor and the
-free surface. We take k = 1.5 (DESIGN.md) and C = pi/4 ~ 0.785. That C is the free-fall
+free surface. We take k = 1.5 (docs/design.md) and C = pi/4 ~ 0.785. That C is the free-fall
 arch estimate with the self-similar outlet profiles of Janda, Zuriguel and Maza (PRL 108,
 248001, 2012) for 2D silos: vertical velocity sqrt(g D) sqrt(1 - (2x/D)^2) across the
 orifice, with the outlet packing close to the bulk one, integrates to (pi/4) rho_b sqrt(g)
@@ -68,7 +68,7 @@ from dem_collapse import (add_run_arguments, deck_vars, max_overlap, print_resul
 
 G = 9.81
 BEVERLOO_C2D = math.pi / 4   # free-fall arch with Janda et al. 2012's outlet profiles (see above)
-BEVERLOO_K = 1.5             # DESIGN.md section 6
+BEVERLOO_K = 1.5             # docs/design.md section 6
 TRANSIENT = 0.1              # s after the opening before the steady window starts
 FIT_FMAX = 0.5               # the steady window ends when this fraction of the mass has left
 PACKING_MARGIN = 3.0         # the packing fraction is measured this many d from walls, floor, top

@@ -6,7 +6,7 @@ The collapse runs as pure LAMMPS DEM (the reference, input_decks/column_collapse
 dem_2d.lmp), as the hybrid (the same deck with `hybrid 1`: lmp_hybrid + mpm_solver,
 fix hybrid/mpm, from the same settled column) and as pure MPM with each constitutive
 model; each is compared with the DEM (final surface, runout, wall time) and with the
-published runout laws (DESIGN.md section 6), by tools/collapse_report.py (which also
+published runout laws (docs/design.md section 6), by tools/collapse_report.py (which also
 runs the wider matrix: adaptive zones, the reference's noise floors).
 
 Writes <out>/report.md (table), <out>/profiles.png (final surface profiles) and

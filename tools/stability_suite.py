@@ -101,7 +101,7 @@ def sand(youngs=2.0e6, name="sand") -> dict:
 
 
 def beads(name="beads") -> dict:
-    # glass beads (DESIGN.md section 4): mu(I) with Jop et al.'s constants, disconnected below
+    # glass beads (docs/design.md section 4): mu(I) with Jop et al.'s constants, disconnected below
     # the critical density
     return {"name": name, "model": "mu_i", "density": 1500.0, "youngs_modulus": 2.0e6, "poisson_ratio": 0.3,
             "grain_diameter": 0.001, "grain_density": 2500.0, "critical_density": 1400.0}

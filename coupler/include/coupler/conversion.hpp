@@ -1,6 +1,6 @@
 #pragma once
 // Conversion rules of one grid cell between grains and material points, exact in mass,
-// linear momentum and angular momentum (DESIGN.md section 5): the cell sums, the rigid
+// linear momentum and angular momentum (docs/design.md section 5): the cell sums, the rigid
 // correction that every change of a cell's zone uses, and homogenisation (grains become
 // points; enrichment.hpp is the other direction). The points' angular momentum is the APIC
 // one, which includes the affine part C, so a cell's spin survives the conversion.
@@ -150,7 +150,7 @@ static_assert(std::is_trivially_copyable_v<CellMoments<2>> && std::is_trivially_
               "CellMoments is sent over MPI as bytes");
 
 // ---------------------------------------------------------------------------------------
-// Moving a cell's material between its two representations (DESIGN.md section 5, adaptive
+// Moving a cell's material between its two representations (docs/design.md section 5, adaptive
 // zones). One rule serves every direction: a set of bodies - the grains or the material
 // points of one cell - is scaled in mass and given a rigid velocity increment (translation
 // plus rotation about its centre of mass), so that it carries exactly a target mass, linear

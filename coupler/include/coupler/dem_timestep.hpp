@@ -1,4 +1,4 @@
-// dem_timestep.hpp - the stable time step of a Hookean DEM contact (DESIGN.md section 3), for the
+// dem_timestep.hpp - the stable time step of a Hookean DEM contact (docs/design.md section 3), for the
 // check fix hybrid/mpm makes before and during a run.
 #pragma once
 

@@ -1,5 +1,5 @@
 #pragma once
-// Enrichment of one grid cell (DESIGN.md section 5): the material points of a
+// Enrichment of one grid cell (docs/design.md section 5): the material points of a
 // cell that turns discrete become grains carrying exactly the same mass,
 // linear momentum and angular momentum. The opposite rule is conversion.hpp.
 //

@@ -1,5 +1,5 @@
 #pragma once
-// The zone oracle of the adaptive hybrid method (DESIGN.md section 5): from the grains and
+// The zone oracle of the adaptive hybrid method (docs/design.md section 5): from the grains and
 // material points it decides, per grid cell, which cells are discrete, hybrid or continuum.
 //
 //   1. packing fraction phi per cell: grain volumes summed per cell (additive, so partial

@@ -264,7 +264,7 @@ struct StepAck {
   std::int64_t rests_kept = 0;       ///< rezone: cells that kept their rest (no points near enough)
   double before[7] = {};             ///< rezone: the continuum's mass, momentum, angular momentum before it
   /// The continuum's side of the energy ledger (docs/fix_hybrid_mpm.md, "Energy ledger"), J (J/m in 2D):
-  /// its kinetic plus potential energy at this message (the agreed grid at an exchange, the points
+  /// its kinetic (with the APIC affine part), potential and stored elastic energy at this message (the agreed grid at an exchange, the points
   /// after a rezone) and, summed since the start, what changed it.
   double energy = 0;
   double energy_physics = 0;         ///< the continuum's own steps: stress, walls, transfers, support reaction

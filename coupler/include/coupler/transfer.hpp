@@ -1,6 +1,6 @@
 #pragma once
 // Grain <-> grid transfers and the velocity agreement of the hybrid zone
-// (DESIGN.md section 5, after Yue et al. 2018). No LAMMPS types: grains come
+// (docs/design.md section 5, after Yue et al. 2018). No LAMMPS types: grains come
 // as strided arrays, so any DEM host (LAMMPS, LIGGGHTS) can call these.
 //
 // Conservation: a grain of mass m and hybrid weight w contributes w*m and
@@ -110,7 +110,7 @@ class GrainTransfer {
 
   /// Velocity change of each grain after the agreement, blending two updates that both add
   /// exactly sum_i lambda_i to the weighted grain momentum:
-  ///   impulse (pic = 0):  dv_g = sum_i N_ig lambda_i / m_dem_i   (DESIGN.md section 5)
+  ///   impulse (pic = 0):  dv_g = sum_i N_ig lambda_i / m_dem_i   (docs/design.md section 5)
   ///   field   (pic = 1):  dv_g = sum_i N_ig v_i - v_g            (the grain takes the agreed field)
   /// The field update conserves because sum_g w_g m_g N_ig = m_dem_i and sum_i N_ig = 1.
   /// `agreed` holds the answers for the nodes of the last to_nodes() in its order; m_dem_i in

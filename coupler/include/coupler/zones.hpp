@@ -1,5 +1,5 @@
 #pragma once
-// Zones of the grid cells in a coupled run (DESIGN.md section 5): discrete cells hold grains
+// Zones of the grid cells in a coupled run (docs/design.md section 5): discrete cells hold grains
 // only, continuum cells material points only, hybrid cells both, each with a share of the
 // mass. The zone map is one byte per cell, computed once and shared by both sides.
 #include <Eigen/Core>

@@ -1,7 +1,7 @@
 #pragma once
 // The continuum of a coupled run: an MPM solver whose grid covers the DEM box, whose points
 // are made from grains, and which agrees with the grains on the node velocities of the
-// hybrid zone (DESIGN.md section 5). No MPI here: coupled.cpp moves the messages.
+// hybrid zone (docs/design.md section 5). No MPI here: coupled.cpp moves the messages.
 #include <cstdint>
 #include <memory>
 #include <vector>
