@@ -566,7 +566,7 @@ void FixHybridMPM::apply_material()
   Pair *pair = force->pair_match("^gran/hooke", 0);
   if (!pair)
     error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for pair style {}, the deck uses {}; "
-                                  "calibrate this contact law with tools/calibrate.py",
+                                  "measure the continuum's constants for this contact law (docs/design.md section 4.6)",
                                   m.path, m.pair, force->pair_style ? force->pair_style : "none"));
   const coupler::HookeanContact hooke = HookeanConstants::of(pair);
   coupler::DeckContact deck;
@@ -581,7 +581,7 @@ void FixHybridMPM::apply_material()
   const std::string mismatch = coupler::contact_mismatch(m, deck);
   if (!mismatch.empty())
     error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for another contact law ({}); "
-                                  "calibrate this one with tools/calibrate.py (docs/calibration.md)",
+                                  "measure the continuum's constants for this one (docs/design.md section 4.6)",
                                   m.path, mismatch));
   coupler::apply_material(m, hooke.kn, settings->grain_diameter, *settings);
   if (comm->me == 0)

@@ -205,7 +205,7 @@ def test_poorly_resolved_dem_time_step_is_warned_and_runs(tmp_path, hybrid_progr
 
 
 def material_file(path: Path, dimension: int = 2, friction: float = 0.5, restitution: float | None = None) -> Path:
-    """A calibrated material (tools/calibrate.py's format, docs/calibration.md) for the handshake
+    """A calibrated material (the format of docs/design.md section 4.6) for the handshake
     deck's contact law unless told otherwise; restitution by default that of its mean pair."""
     if restitution is None:
         m_eff = 0.5 * 2500 * 4 / 3 * math.pi * 0.001 ** 3

@@ -18,7 +18,7 @@ class Reader {
 
   [[noreturn]] void fail(const std::string& key, const std::string& what) const {
     throw std::runtime_error("material file " + path_ + ": " + key + " " + what +
-                             " (rerun tools/calibrate.py to write a complete file; docs/calibration.md)");
+                             " (a material file holds every key of docs/design.md section 4.6)");
   }
   double number(const char* table, const char* key, double lo, double hi) const {
     const std::string name = std::string("[") + table + "] " + key;

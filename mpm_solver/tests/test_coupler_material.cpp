@@ -1,4 +1,4 @@
-// Material files written by tools/calibrate.py and read by fix hybrid/mpm's keyword `material`
+// Material files (docs/design.md section 4.6) read by fix hybrid/mpm's keyword `material`
 // (coupler/material_file.hpp): every key checked, the contact law compared, the constants applied.
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
-// material_file.hpp - a granular material calibrated from its own grains (tools/calibrate.py,
-// docs/calibration.md, docs/design.md "Calibration"): the contact law it was measured with and
+// material_file.hpp - a granular material calibrated from its own grains (docs/design.md
+// section 4.6, "Calibration from the grains"): the contact law it was measured with and
 // the continuum's constants, all dimensionless so that one file serves every grain size and
 // stiffness of that law. fix hybrid/mpm reads it with the keyword `material FILE`.
 #pragma once
