@@ -129,7 +129,7 @@ def collapse_3d(work: Path, np_: int) -> list[dict]:
                  oracle_every=ORACLE_DEFAULT, runout_error=hyb.runout / ref.runout - 1, surface_error=None,
                  ke_error=None, rate_error=None, steps_ratio=hyb.collapse_steps / ref.collapse_steps,
                  noise_floor=other.runout / ref.runout - 1, noise_floor_is="LIGGGHTS",
-                 ledger_closure=closure(work / "c3_hybrid" / "log.lammps"), dem_value=ref.runout,
+                 ledger_closure=closure(work / "c3_hybrid" / "log.txt"), dem_value=ref.runout,
                  hybrid_value=hyb.runout, speedup=ref.collapse_wall / hyb.collapse_wall)]
 
 
@@ -142,7 +142,7 @@ def silo_3d(work: Path, np_: int) -> list[dict]:
     return [dict(scene="silo_3d", grains=ref.grains, aspect=None, exchange_every=EXCHANGE_DEFAULT,
                  oracle_every=ORACLE_DEFAULT, runout_error=None, surface_error=None, ke_error=None,
                  rate_error=hyb.rate / ref.rate - 1, steps_ratio=None, noise_floor=other.rate / ref.rate - 1,
-                 noise_floor_is="LIGGGHTS", ledger_closure=closure(work / "s3_hybrid" / "log.lammps"),
+                 noise_floor_is="LIGGGHTS", ledger_closure=closure(work / "s3_hybrid" / "log.txt"),
                  dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time)]
 
 
