@@ -187,7 +187,8 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     if (key == "cell") cell = positive(key, val, "the MPM grid cell size");
     else if (key == "material") {
       try {
-        material = std::make_unique<coupler::CalibratedMaterial>(coupler::read_material_file(val));
+        material = std::make_unique<coupler::CalibratedMaterial>(
+            coupler::read_material_file(coupler::find_material_file(val)));
       } catch (const std::exception &e) {
         illegal(fmt::format("keyword 'material': {}", e.what()));
       }

@@ -126,7 +126,7 @@ def test_launcher_composes_both_routes(tmp_path, hybrid_programs, hybrid_plugin)
     ("cell 0.01 container 0 INF", "keyword 'container' needs 4 values (xlo xhi ylo yhi; INF = the box face)"),
     ("cell 0.01 steps_per_contact 1.5", "keyword 'steps_per_contact' (warn below this many DEM steps per contact) "
                                         "must exceed pi/2, where velocity Verlet goes unstable, not 1.5"),
-    ("cell 0.01 material no_such_material.toml", "keyword 'material': material file no_such_material.toml: "),
+    ("cell 0.01 material no_such_material.toml", "keyword 'material': material file no_such_material.toml not found"),
     ("cell 0.01 relax -1", "keyword 'relax' (relaxation time of the velocity agreement, s; 0 = close the gap at "
                            "every exchange) must be >= 0, not -1"),
     ("cell 0.01 adaptive 10 touch floor", "keyword 'touch' needs a container face (xlo, xhi, ylo, yhi or all), "

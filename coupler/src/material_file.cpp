@@ -1,7 +1,10 @@
 #include "coupler/material_file.hpp"
 
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <sstream>
+#include <vector>
 #include <stdexcept>
 
 #include <toml++/toml.h>
@@ -45,6 +48,36 @@ class Reader {
 };
 
 }  // namespace
+
+std::string find_material_file(const std::string& name_or_path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_regular_file(name_or_path, ec)) return name_or_path;
+  std::vector<std::string> dirs;
+  if (name_or_path.find('/') == std::string::npos) {
+    if (const char* env = std::getenv("HYBRID_MATERIALS")) {
+      std::istringstream list(env);
+      for (std::string dir; std::getline(list, dir, ':');)
+        if (!dir.empty()) dirs.push_back(dir);
+    }
+    dirs.push_back(HYBRID_MATERIAL_DIR);
+    for (const auto& dir : dirs)
+      for (const char* suffix : {"", ".toml"}) {
+        const fs::path candidate = fs::path(dir) / (name_or_path + suffix);
+        if (fs::is_regular_file(candidate, ec)) return candidate.string();
+      }
+  }
+  std::ostringstream what;
+  what << "material file " << name_or_path << " not found";
+  if (!dirs.empty()) {
+    what << " (as a path, nor as a name in";
+    for (const auto& dir : dirs) what << " " << dir;
+    what << ")";
+  }
+  what << "; give the path of a material file, or calibrate one from the grains with tools/calibrate.py "
+          "(docs/calibration.md)";
+  throw std::runtime_error(what.str());
+}
 
 CalibratedMaterial read_material_file(const std::string& path) {
   toml::table root;

@@ -115,3 +115,26 @@ TEST(coupler_material, ContactLawMustMatchAndSetsTheConstants) {
   coupler::apply_material(m3, 100.0, 0.002, c);
   EXPECT_DOUBLE_EQ(c.youngs_modulus, 0.8 * 100.0 / 0.002);  // 3D: E = youngs_over_kn kn / d
 }
+
+TEST(coupler_material, FindsAPathOrANameInTheMaterialDirectories) {
+  const auto path = write("material_found.toml", kValid);
+  EXPECT_EQ(coupler::find_material_file(path), path);
+  // a name: looked up with and without .toml in $HYBRID_MATERIALS
+  const auto dir = std::filesystem::path(path).parent_path().string();
+  ::setenv("HYBRID_MATERIALS", ("/no/such/dir:" + dir).c_str(), 1);
+  EXPECT_EQ(coupler::find_material_file("material_found"), path);
+  EXPECT_EQ(coupler::find_material_file("material_found.toml"), path);
+  // the project's own calibrated materials are found by name without any setting
+  ::unsetenv("HYBRID_MATERIALS");
+  const auto disks = coupler::find_material_file("disks_2d");
+  EXPECT_EQ(coupler::read_material_file(disks).dimension, 2);
+  try {
+    coupler::find_material_file("no_such_material");
+    FAIL() << "an unknown material was found";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("no_such_material not found"), std::string::npos) << what;
+    EXPECT_NE(what.find("input_decks/materials"), std::string::npos) << what;
+    EXPECT_NE(what.find("tools/calibrate.py"), std::string::npos) << what;
+  }
+}

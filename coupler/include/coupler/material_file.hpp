@@ -24,6 +24,12 @@ struct CalibratedMaterial {
   double friction_angle = 0;   ///< degrees: the Drucker-Prager cone that matches mu_s
 };
 
+/// The material file a fix line names: a path that exists, else a name (no '/') looked up as
+/// NAME or NAME.toml in each directory of $HYBRID_MATERIALS (':'-separated) and then in the
+/// project's input_decks/materials (the calibrated materials the decks use). Throws
+/// std::runtime_error listing where it looked and how to calibrate a material.
+std::string find_material_file(const std::string& name_or_path);
+
 /// Reads a material file. Throws std::runtime_error naming the file, the key and what is wrong
 /// (missing, not a number, out of range).
 CalibratedMaterial read_material_file(const std::string& path);
