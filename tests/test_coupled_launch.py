@@ -373,6 +373,40 @@ def test_unwritable_output_directory_is_a_clear_error(tmp_path, hybrid_programs)
     assert elapsed < STOP_WITHIN
 
 
+@pytest.mark.parametrize("fault, lammps_says, mpm_says", [
+    # a std::runtime_error while the exchange is computed: reported in that exchange's answer
+    ("exchange@30", "the MPM process reported an error at step 30: the continuum failed at step 30: test fault "
+                    "HYBRID_MPM_TEST_FAULT=exchange@30 at step 30 (std::runtime_error)",
+     "mpm_solver: error: the continuum failed at step 30: test fault HYBRID_MPM_TEST_FAULT=exchange@30 at step 30 "
+     "(std::runtime_error)"),
+    # one in the work after the acknowledgement: reported at the next exchange
+    ("after@30", "the MPM process reported an error at step 40: the continuum failed after step 30: test fault "
+                 "HYBRID_MPM_TEST_FAULT=after@30 at step 30 (std::runtime_error)",
+     "mpm_solver: error: the continuum failed after step 30: test fault"),
+    # not a std::exception, outside the exchange's own handlers
+    ("unknown@30", "the MPM process reported an error at step 30: the MPM process failed at step 30: an exception of "
+                   "unknown type (not a std::exception)",
+     "mpm_solver: error: the MPM process failed at step 30: an exception of unknown type"),
+])
+def test_any_exception_in_the_mpm_process_stops_lammps_naming_it(tmp_path, hybrid_programs, fault, lammps_says,
+                                                                  mpm_says):
+    """Not only UserErrors: any failure of the coupled loop reaches LAMMPS at once (not after its
+    reply timeout), with the cause, and both programs exit non-zero."""
+    deck = deck_copy(tmp_path)
+    cmd = [str(MPIRUN), "-np", "2", hybrid_programs["lmp_hybrid"], "-in", str(deck), "-log", "none",
+           "-var", "nsteps", "100", ":", "-np", "1", "env", f"HYBRID_MPM_TEST_FAULT={fault}",
+           hybrid_programs["mpm_solver"], "--coupled"]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=90, env=env())
+    elapsed = time.monotonic() - t0
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "ERROR: Fix hybrid/mpm: " + lammps_says in text, text
+    assert mpm_says in text, text
+    assert "no reply from the MPM process" not in text, text
+    assert elapsed < STOP_WITHIN, text
+
+
 # ---------------------------------------------------------------------------- no peer
 def test_lmp_hybrid_without_mpm_process_is_a_clear_error(tmp_path, hybrid_programs):
     deck = deck_copy(tmp_path)
