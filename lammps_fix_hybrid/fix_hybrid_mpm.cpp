@@ -363,7 +363,11 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   }
 
   // tell the MPM process at MPI_Finalize if LAMMPS stops on an error (see coupler)
-  coupler::install_dem_finalize_hook(world);
+  try {
+    coupler::install_dem_finalize_hook(world);
+  } catch (const std::exception &e) {
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
+  }
 }
 
 /* ---------------------------------------------------------------------- */
@@ -1155,15 +1159,11 @@ double FixHybridMPM::container_edge(int axis, int side) const
 template <int D>
 void FixHybridMPM::sum_over_ranks(std::vector<coupler::BodySums<D>> &sums)
 {
-  constexpr std::size_t skip = sizeof(std::uint64_t);    // BodySums::moments.cell
-  constexpr std::size_t values = (sizeof(coupler::BodySums<D>) - skip) / sizeof(double);
-  static_assert((sizeof(coupler::BodySums<D>) - skip) % sizeof(double) == 0, "BodySums holds doubles after the cell");
+  constexpr std::size_t values = coupler::kBodySumsValues<D>;
   std::vector<double> local(sums.size() * values), all(sums.size() * values);
-  for (std::size_t k = 0; k < sums.size(); ++k)
-    std::memcpy(&local[k * values], reinterpret_cast<const char *>(&sums[k]) + skip, values * sizeof(double));
+  for (std::size_t k = 0; k < sums.size(); ++k) coupler::pack_summed_fields<D>(sums[k], &local[k * values]);
   MPI_Allreduce(local.data(), all.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, world);
-  for (std::size_t k = 0; k < sums.size(); ++k)
-    std::memcpy(reinterpret_cast<char *>(&sums[k]) + skip, &all[k * values], values * sizeof(double));
+  for (std::size_t k = 0; k < sums.size(); ++k) coupler::unpack_summed_fields<D>(&all[k * values], sums[k]);
 }
 
 /* ----------------------------------------------------------------------
