@@ -44,6 +44,7 @@
 #include "coupler/oracle.hpp"
 #include "coupler/protocol.hpp"
 #include "coupler/transfer.hpp"
+#include "coupler/tuning.hpp"
 #include "coupler/version.hpp"
 #include "coupler/zones.hpp"
 
@@ -60,10 +61,8 @@ using namespace FixConst;
 using MathConst::MY_PI;
 
 static constexpr double BIG = 1.0e20;
-// a new grain that an old one overlaps shrinks to fit, down to this share of its radius
-static constexpr double kSmallestShrink = 0.8;
-// the smallest MPM cell adaptive zones accept, in mean grain diameters
-static constexpr double kSmallestCellInGrains = 2.0;
+using coupler::kSmallestCellInGrains;    // tuned constants: coupler/tuning.hpp
+using coupler::kSmallestShrink;
 
 namespace {
 

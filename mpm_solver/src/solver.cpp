@@ -477,7 +477,6 @@ RunProgress run(Solver<D>& solver, const RunOptions& options, const std::functio
   bool state_written = true;
   double next_output = std::min(interval, end);
   const double tiny = 1e-12 * std::max(1.0, end);
-  constexpr int kSortEvery = 50;
   const long first_step = solver.steps();
   auto rate = [&](double wall) { return (solver.steps() - first_step) * double(solver.points().size()) / wall; };
   while (solver.time() < end - tiny && (options.max_steps <= 0 || solver.steps() - first_step < options.max_steps)) {
