@@ -44,6 +44,7 @@
 #include "coupler/oracle.hpp"
 #include "coupler/protocol.hpp"
 #include "coupler/transfer.hpp"
+#include "coupler/tuning.hpp"
 #include "coupler/version.hpp"
 #include "coupler/zones.hpp"
 
@@ -60,10 +61,8 @@ using namespace FixConst;
 using MathConst::MY_PI;
 
 static constexpr double BIG = 1.0e20;
-// a new grain that an old one overlaps shrinks to fit, down to this share of its radius
-static constexpr double kSmallestShrink = 0.8;
-// the smallest MPM cell adaptive zones accept, in mean grain diameters
-static constexpr double kSmallestCellInGrains = 2.0;
+using coupler::kSmallestCellInGrains;    // tuned constants: coupler/tuning.hpp
+using coupler::kSmallestShrink;
 
 namespace {
 
@@ -357,6 +356,8 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   atom->add_callback(Atom::RESTART);
   for (int i = 0; i < atom->nlocal; i++) set_arrays(i);
 
+  check_box();
+
   // per-atom stress*volume for the Love-Weber stress of new material points
   if (!region_ids.empty() || adapt_every > 0) {
     stress_id = utils::strdup(std::string(id) + "_hybrid_stress");
@@ -364,7 +365,11 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   }
 
   // tell the MPM process at MPI_Finalize if LAMMPS stops on an error (see coupler)
-  coupler::install_dem_finalize_hook(world);
+  try {
+    coupler::install_dem_finalize_hook(world);
+  } catch (const std::exception &e) {
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
+  }
 }
 
 /* ---------------------------------------------------------------------- */
@@ -391,6 +396,66 @@ FixHybridMPM::~FixHybridMPM()
   link.reset();
 }
 
+/* ----------------------------------------------------------------------
+   the MPM grid, the zone cells and the continuum's walls are axis-aligned
+   boxes over [boxlo, boxhi]: a tilted box has no such grid
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::check_box() const
+{
+  if (domain->triclinic)
+    error->all(FLERR, "Fix hybrid/mpm: the simulation box is triclinic, but the MPM grid needs an orthogonal "
+                      "box (its cells are axis-aligned); use an orthogonal box (change_box all ortho)");
+}
+
+/* ----------------------------------------------------------------------
+   gravity: sent to the MPM process once, at the handshake, and part of the
+   energy ledger's potential energy from then on, so it must not change
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::dem_gravity(double *g) const
+{
+  for (int d = 0; d < 3; d++) g[d] = 0.0;
+  for (int i = 0; i < modify->nfix; i++)
+    if (utils::strmatch(modify->fix[i]->style, "^gravity")) {
+      int dim = 0;
+      const auto *gi = static_cast<const double *>(modify->fix[i]->extract("gvec", dim));
+      if (gi)
+        for (int d = 0; d < 3; d++) g[d] += gi[d];
+    }
+}
+
+void FixHybridMPM::check_gravity() const
+{
+  double now[3];
+  dem_gravity(now);
+  const double *then = settings->gravity;
+  const double scale = std::max(std::sqrt(then[0] * then[0] + then[1] * then[1] + then[2] * then[2]),
+                                std::sqrt(now[0] * now[0] + now[1] * now[1] + now[2] * now[2]));
+  bool same = true;
+  for (int d = 0; d < 3; d++) same = same && std::fabs(now[d] - then[d]) <= 1e-12 * scale;    // round-off only
+  if (!same)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: gravity changed since the coupled run started: ({}, {}, {}) m/s^2 "
+                                  "then, ({}, {}, {}) now. The MPM process keeps the gravity of the handshake (and "
+                                  "the energy ledger its potential energy): keep the fix gravity commands unchanged "
+                                  "while fix hybrid/mpm is defined",
+                                  then[0], then[1], then[2], now[0], now[1], now[2]));
+}
+
+/* ----------------------------------------------------------------------
+   the compute stress/atom the fix made; a user may have deleted it
+------------------------------------------------------------------------- */
+
+Compute *FixHybridMPM::stress_compute() const
+{
+  const int icompute = stress_id ? modify->find_compute(stress_id) : -1;
+  if (icompute < 0)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: its compute {} (stress/atom, for the stress of new material "
+                                  "points) no longer exists: do not uncompute it while the fix is defined",
+                                  stress_id ? stress_id : "ID_hybrid_stress"));
+  return modify->compute[icompute];
+}
+
 /* ---------------------------------------------------------------------- */
 
 int FixHybridMPM::setmask()
@@ -407,6 +472,7 @@ int FixHybridMPM::setmask()
 
 void FixHybridMPM::init()
 {
+  check_box();    // again: change_box may have tilted it since the fix was defined
   if (!atom->sphere_flag) error->all(FLERR, "Fix hybrid/mpm requires atom style sphere");
   if (strcmp(update->unit_style, "si") != 0)
     error->all(FLERR, "Fix hybrid/mpm requires units si (the MPM process works in SI units)");
@@ -673,15 +739,9 @@ void FixHybridMPM::connect()
   }
   hello.step = update->ntimestep;
   hello.time = dem_time();
-  // gravity of the grains acts on the continuum too (and sets the energy ledger's potential energy)
-  for (int d = 0; d < 3; d++) settings->gravity[d] = 0.0;
-  for (int i = 0; i < modify->nfix; i++)
-    if (utils::strmatch(modify->fix[i]->style, "^gravity")) {
-      int dim = 0;
-      const auto *g = static_cast<const double *>(modify->fix[i]->extract("gvec", dim));
-      if (g)
-        for (int d = 0; d < 3; d++) settings->gravity[d] += g[d];
-    }
+  // gravity of the grains acts on the continuum too (and sets the energy ledger's potential
+  // energy); read once here, checked at every later run's setup
+  dem_gravity(settings->gravity);
   // the agreement's relaxation time: half the stiffest contact's duration, the time over which
   // grains in contact equalise their velocities (10 steps where the contact time is unknown)
   if (relax_time < 0.0) {
@@ -897,6 +957,7 @@ void FixHybridMPM::setup(int /*vflag*/)
   }
   clock_dt = update->dt;
   if (!link) connect();
+  else check_gravity();
   if (zones.empty()) compute_zones();
   if (restored && !state_loaded) load_mpm_state();
   if (!ledger_started) {
@@ -912,7 +973,7 @@ void FixHybridMPM::setup(int /*vflag*/)
   if (adapt_every > 0) {
     // the Love-Weber stress of the first oracle step needs its per-atom virial
     const bigint first = (update->ntimestep / adapt_every + 1) * adapt_every;
-    modify->compute[modify->find_compute(stress_id)]->addstep(first);
+    stress_compute()->addstep(first);
   }
 }
 
@@ -932,7 +993,7 @@ void FixHybridMPM::schedule_rezone(int source)
 
 void FixHybridMPM::store_atom_stress()
 {
-  Compute *c = modify->compute[modify->find_compute(stress_id)];
+  Compute *c = stress_compute();
   c->compute_peratom();
   atom_stress.assign(static_cast<std::size_t>(atom->nlocal) * 6, 0.0);
   for (int i = 0; i < atom->nlocal; i++)
@@ -1156,15 +1217,11 @@ double FixHybridMPM::container_edge(int axis, int side) const
 template <int D>
 void FixHybridMPM::sum_over_ranks(std::vector<coupler::BodySums<D>> &sums)
 {
-  constexpr std::size_t skip = sizeof(std::uint64_t);    // BodySums::moments.cell
-  constexpr std::size_t values = (sizeof(coupler::BodySums<D>) - skip) / sizeof(double);
-  static_assert((sizeof(coupler::BodySums<D>) - skip) % sizeof(double) == 0, "BodySums holds doubles after the cell");
+  constexpr std::size_t values = coupler::kBodySumsValues<D>;
   std::vector<double> local(sums.size() * values), all(sums.size() * values);
-  for (std::size_t k = 0; k < sums.size(); ++k)
-    std::memcpy(&local[k * values], reinterpret_cast<const char *>(&sums[k]) + skip, values * sizeof(double));
+  for (std::size_t k = 0; k < sums.size(); ++k) coupler::pack_summed_fields<D>(sums[k], &local[k * values]);
   MPI_Allreduce(local.data(), all.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, world);
-  for (std::size_t k = 0; k < sums.size(); ++k)
-    std::memcpy(reinterpret_cast<char *>(&sums[k]) + skip, &all[k * values], values * sizeof(double));
+  for (std::size_t k = 0; k < sums.size(); ++k) coupler::unpack_summed_fields<D>(&all[k * values], sums[k]);
 }
 
 /* ----------------------------------------------------------------------
@@ -1356,6 +1413,21 @@ void FixHybridMPM::rezone(int source)
   MPI_Allreduce(drift, drift_all, 2, MPI_DOUBLE, MPI_MAX, world);
   bigint local[3] = {deleted_local, made_local, hybrid_local}, all[3];
   MPI_Allreduce(local, all, 3, MPI_LMP_BIGINT, MPI_SUM, world);
+  // as fix deposit and fix pour do: made grains must not overflow the atom count or the IDs
+  if (all[1] > all[0] && all[1] - all[0] > MAXBIGINT - atom->natoms)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: too many total atoms: making {} grains from points at step {} "
+                                  "would exceed the largest atom count LAMMPS allows ({})",
+                                  all[1], update->ntimestep, MAXBIGINT));
+  if (all[1] > 0) {
+    tagint maxtag = 0, maxtag_all = 0;
+    for (int i = 0; i < atom->nlocal; i++) maxtag = std::max(maxtag, atom->tag[i]);    // new grains: tag 0
+    MPI_Allreduce(&maxtag, &maxtag_all, 1, MPI_LMP_TAGINT, MPI_MAX, world);
+    if (all[1] >= static_cast<bigint>(MAXTAGINT) - maxtag_all)
+      error->all(FLERR, fmt::format("Fix hybrid/mpm: new atom IDs exceed the largest ID allowed ({}): making {} "
+                                    "grains from points at step {} after ID {}; compact the IDs (reset_atom_ids) or "
+                                    "build LAMMPS with -DLAMMPS_BIGBIG",
+                                    MAXTAGINT, all[1], update->ntimestep, maxtag_all));
+  }
   atom->natoms += all[1] - all[0];
   if (all[1] > 0) atom->tag_extend();
   if (atom->map_style != Atom::MAP_NONE) {
@@ -1402,7 +1474,7 @@ void FixHybridMPM::end_of_step()
   ledger.support_open += kicked;
   const bigint step = update->ntimestep;
   const bool oracle_next = adapt_every > 0 && converted && (step + 1) % adapt_every == 0;
-  if (oracle_next) modify->compute[modify->find_compute(stress_id)]->addstep(step + 1);    // its virial
+  if (oracle_next) stress_compute()->addstep(step + 1);    // its virial
   if (step % every != 0) return;
   if (domain->dimension == 2) exchange<2>(false);
   else exchange<3>(false);

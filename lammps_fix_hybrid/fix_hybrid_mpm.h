@@ -42,6 +42,7 @@ struct CalibratedMaterial;
 }
 
 namespace LAMMPS_NS {
+class Compute;
 class Region;
 
 class FixHybridMPM : public Fix {
@@ -135,6 +136,10 @@ class FixHybridMPM : public Fix {
   double clock_dt;
   std::vector<double> atom_stress;        // per local atom stress*volume before a rezone (6 each)
   char *stress_id;                        // compute stress/atom for the Love-Weber stress
+  Compute *stress_compute() const;        // that compute; an error if it was deleted
+  void dem_gravity(double *g) const;      // the sum of the fix gravity commands' accelerations
+  void check_gravity() const;             // an error if it differs from the handshake's
+  void check_box() const;                 // an error for a box the grid cannot cover (triclinic)
 
   // last exchange, for thermo output
   std::unique_ptr<coupler::StepAck> last_ack;

@@ -35,5 +35,9 @@ extern "C" void lammpsplugin_init(void *lmp, void *handle, void *regfunc)
   (*register_plugin)(&plugin, lmp);
 
   // from now on, an error in the input is passed on to the MPM process at MPI_Finalize
-  coupler::install_dem_finalize_hook(lammps->world);
+  try {
+    coupler::install_dem_finalize_hook(lammps->world);
+  } catch (const std::exception &e) {
+    lammps->error->all(FLERR, std::string("hybridmpmplugin.so: ") + e.what());
+  }
 }

@@ -54,7 +54,12 @@ int main(int argc, char **argv)
   MPI_Comm_rank(MPI_COMM_WORLD, &me);
   MPI_Comm lammps_comm = MPI_COMM_NULL;
   MPI_Comm_split(MPI_COMM_WORLD, coupler::kDemColor, me, &lammps_comm);
-  coupler::install_dem_finalize_hook(lammps_comm);
+  try {
+    coupler::install_dem_finalize_hook(lammps_comm);
+  } catch (const std::exception &e) {
+    std::fprintf(stderr, "lmp_hybrid: ERROR: %s\n", e.what());
+    MPI_Abort(MPI_COMM_WORLD, 1);
+  }
   coupler::set_world_barrier_by_hook(true);    // errors: Debian's Error::all -> MPI_Finalize
 
   try {

@@ -373,6 +373,98 @@ def test_unwritable_output_directory_is_a_clear_error(tmp_path, hybrid_programs)
     assert elapsed < STOP_WITHIN
 
 
+@pytest.mark.parametrize("fault, lammps_says, mpm_says", [
+    # a std::runtime_error while the exchange is computed: reported in that exchange's answer
+    ("exchange@30", "the MPM process reported an error at step 30: the continuum failed at step 30: test fault "
+                    "HYBRID_MPM_TEST_FAULT=exchange@30 at step 30 (std::runtime_error)",
+     "mpm_solver: error: the continuum failed at step 30: test fault HYBRID_MPM_TEST_FAULT=exchange@30 at step 30 "
+     "(std::runtime_error)"),
+    # one in the work after the acknowledgement: reported at the next exchange
+    ("after@30", "the MPM process reported an error at step 40: the continuum failed after step 30: test fault "
+                 "HYBRID_MPM_TEST_FAULT=after@30 at step 30 (std::runtime_error)",
+     "mpm_solver: error: the continuum failed after step 30: test fault"),
+    # not a std::exception, outside the exchange's own handlers
+    ("unknown@30", "the MPM process reported an error at step 30: the MPM process failed at step 30: an exception of "
+                   "unknown type (not a std::exception)",
+     "mpm_solver: error: the MPM process failed at step 30: an exception of unknown type"),
+])
+def test_any_exception_in_the_mpm_process_stops_lammps_naming_it(tmp_path, hybrid_programs, fault, lammps_says,
+                                                                  mpm_says):
+    """Not only UserErrors: any failure of the coupled loop reaches LAMMPS at once (not after its
+    reply timeout), with the cause, and both programs exit non-zero."""
+    deck = deck_copy(tmp_path)
+    cmd = [str(MPIRUN), "-np", "2", hybrid_programs["lmp_hybrid"], "-in", str(deck), "-log", "none",
+           "-var", "nsteps", "100", ":", "-np", "1", "env", f"HYBRID_MPM_TEST_FAULT={fault}",
+           hybrid_programs["mpm_solver"], "--coupled"]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=90, env=env())
+    elapsed = time.monotonic() - t0
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "ERROR: Fix hybrid/mpm: " + lammps_says in text, text
+    assert mpm_says in text, text
+    assert "no reply from the MPM process" not in text, text
+    assert elapsed < STOP_WITHIN, text
+
+
+TRICLINIC = ("ERROR: Fix hybrid/mpm: the simulation box is triclinic, but the MPM grid needs an orthogonal box (its "
+             "cells are axis-aligned); use an orthogonal box (change_box all ortho)")
+
+
+def test_triclinic_box_is_refused_when_the_fix_is_defined(tmp_path, hybrid_programs):
+    deck = deck_copy(tmp_path, lambda t: re.sub(r"^(fix\s+couple\s)", r"change_box all triclinic\n\1", t, flags=re.M))
+    proc, elapsed = launch("-np", "2", str(deck), "-log", "none", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert TRICLINIC in text, text
+    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+def test_box_tilted_between_runs_is_refused(tmp_path, hybrid_programs):
+    deck = deck_copy(tmp_path, extra="\nchange_box all triclinic\nrun 10\n")
+    proc, elapsed = launch("-np", "2", str(deck), "-log", "none", "-var", "nsteps", "20", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert TRICLINIC in text, text
+    assert "mpm_solver: error: LAMMPS stopped the coupled run after 2 exchange(s)" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+@pytest.mark.parametrize("magnitude, refused", [("5.0", True), ("9.81", False)])
+def test_gravity_changed_between_runs_is_refused(tmp_path, hybrid_programs, magnitude, refused):
+    """The MPM process takes gravity once, at the handshake: a later run with another gravity is
+    an error naming both; the same gravity redefined runs on."""
+    extra = f"\nunfix grav\nfix grav all gravity {magnitude} vector 0 -1 0\nrun 10\n"
+    proc, elapsed = launch("-np", "2", str(deck_copy(tmp_path, extra=extra)), "-log", "none", "-var", "nsteps", "20",
+                           timeout=60)
+    text = output(proc)
+    if not refused:
+        assert proc.returncode == 0, text
+        assert "coupled run finished at LAMMPS step 30 after 3 exchange(s)" in text, text
+        return
+    assert proc.returncode != 0, text
+    assert ("ERROR: Fix hybrid/mpm: gravity changed since the coupled run started: (0, -9.81, 0) m/s^2 then, "
+            "(0, -5, 0) now") in text, text
+    assert "mpm_solver: error: LAMMPS stopped the coupled run after 2 exchange(s)" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+def test_deleted_stress_compute_is_a_clear_error(tmp_path, hybrid_programs):
+    """Adaptive zones use the fix's compute stress/atom at every run's setup: deleting it between
+    runs is an error naming it (it used to index the compute list with -1)."""
+    def edit(text):
+        text = text.replace("boundary        p f p", "boundary        f f p")
+        return replace_fix_line(text, "cell 0.01 adaptive 10 every 10")
+    deck = deck_copy(tmp_path, edit, extra="\nuncompute couple_hybrid_stress\nrun 10\n")
+    proc, elapsed = launch("-np", "2", str(deck), "-log", "none", "-var", "nsteps", "20", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert ("ERROR: Fix hybrid/mpm: its compute couple_hybrid_stress (stress/atom, for the stress of new material "
+            "points) no longer exists: do not uncompute it while the fix is defined") in text, text
+    assert elapsed < STOP_WITHIN
+
+
 # ---------------------------------------------------------------------------- no peer
 def test_lmp_hybrid_without_mpm_process_is_a_clear_error(tmp_path, hybrid_programs):
     deck = deck_copy(tmp_path)

@@ -149,8 +149,12 @@ Message recv_message(MPI_Comm comm, int source, std::initializer_list<int> tags,
       throw PeerTimeout("lost the connection to " + peer + " while waiting for " + what + " (" +
                         mpi_error_text(rc) + "); it may have crashed - check its output");
     if (flag) {
-      int count = 0;
-      MPI_Get_count(&status, MPI_BYTE, &count);
+      int count = MPI_UNDEFINED;
+      rc = MPI_Get_count(&status, MPI_BYTE, &count);
+      if (rc != MPI_SUCCESS || count == MPI_UNDEFINED || count < 0)
+        throw PeerTimeout("cannot size " + std::string(tag_name(status.MPI_TAG)) + " from " + peer +
+                          " while waiting for " + what + " (MPI_Get_count: " +
+                          (rc != MPI_SUCCESS ? mpi_error_text(rc) : "count undefined") + ")");
       Message m;
       m.tag = status.MPI_TAG;
       m.data.resize(static_cast<std::size_t>(std::max(count, 0)));
@@ -398,7 +402,7 @@ std::unique_ptr<Link> connect_dem(MPI_Comm local, Hello hello) {
       if (!m.fits<HelloReply>()) {
         out.status = 1;
         set_text(out.message, "version mismatch: " + versions_text("fix hybrid/mpm", wire_release(), kProtocolVersion) +
-                                  ", the MPM process answered in protocol " + std::to_string(m.leading_int()) +
+                                  ", the MPM process answered in protocol " + std::to_string(m.announced_protocol()) +
                                   "; rebuild both from the same source tree");
       } else {
         reply = m.as<HelloReply>();
@@ -454,7 +458,7 @@ std::unique_ptr<Link> connect_mpm(MPI_Comm local, double hello_timeout_s, Hello&
         set_text(reply.release, wire_release());
         std::string error;
         if (!m.fits<Hello>()) {
-          error = "version mismatch: fix hybrid/mpm speaks protocol " + std::to_string(m.leading_int()) + " (a " +
+          error = "version mismatch: fix hybrid/mpm speaks protocol " + std::to_string(m.announced_protocol()) + " (a " +
                   std::to_string(m.data.size()) + "-byte Hello), " +
                   versions_text("mpm_solver", wire_release(), kProtocolVersion) +
                   "; rebuild both from the same source tree";
@@ -507,9 +511,19 @@ void install_dem_finalize_hook(MPI_Comm local) {
   g.remote_leader = first_world_rank_outside(local);
   g.registered = true;
   if (!g.hook_installed) {
+    // Without the hook an error in LAMMPS would leave the MPM process waiting for its idle
+    // timeout, so a failure here is an error, not something to skip.
     int keyval = MPI_KEYVAL_INVALID;
-    MPI_Comm_create_keyval(MPI_COMM_NULL_COPY_FN, dem_finalize_hook, &keyval, nullptr);
-    MPI_Comm_set_attr(MPI_COMM_SELF, keyval, nullptr);
+    int rc = MPI_Comm_create_keyval(MPI_COMM_NULL_COPY_FN, dem_finalize_hook, &keyval, nullptr);
+    if (rc != MPI_SUCCESS)
+      throw std::runtime_error("cannot install the MPI_Finalize hook that tells the MPM process about LAMMPS "
+                               "errors (MPI_Comm_create_keyval: " + mpi_error_text(rc) + ")");
+    rc = MPI_Comm_set_attr(MPI_COMM_SELF, keyval, nullptr);
+    if (rc != MPI_SUCCESS) {
+      MPI_Comm_free_keyval(&keyval);
+      throw std::runtime_error("cannot install the MPI_Finalize hook that tells the MPM process about LAMMPS "
+                               "errors (MPI_Comm_set_attr on MPI_COMM_SELF: " + mpi_error_text(rc) + ")");
+    }
     g.hook_installed = true;
   }
 }

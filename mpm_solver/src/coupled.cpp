@@ -1,5 +1,6 @@
 #include "mpm/coupled.hpp"
 
+#include <cxxabi.h>
 #include <mpi.h>
 #include <pthread.h>
 #include <sched.h>
@@ -8,12 +9,16 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <memory>
-#include <cstdlib>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <memory>
+#include <new>
+#include <stdexcept>
 #include <string>
 #include <thread>
+#include <typeinfo>
 
 #include "coupler/protocol.hpp"
 #include "coupler/version.hpp"
@@ -101,6 +106,60 @@ class EndOfJobBarrier {
   std::thread thread_;
 };
 
+/// The demangled name of a type, for messages.
+std::string type_name(const std::type_info& type) {
+  int status = 0;
+  char* name = abi::__cxa_demangle(type.name(), nullptr, nullptr, &status);
+  std::string out = status == 0 && name != nullptr ? name : type.name();
+  std::free(name);
+  return out;
+}
+
+/// What a caught exception was, as one sentence for the log and the DEM side: a UserError's
+/// own text, else its message followed by its type (an HDF5 or Eigen failure, a bug). Every
+/// failure of the continuum goes through here, so that none leaves LAMMPS waiting for an
+/// answer until its timeout.
+std::string describe(const std::exception_ptr& error) {
+  try {
+    std::rethrow_exception(error);
+  } catch (const UserError& e) {
+    return e.what();
+  } catch (const std::bad_alloc& e) {
+    return "out of memory (" + type_name(typeid(e)) + ")";
+  } catch (const std::exception& e) {
+    return std::string(e.what()) + " (" + type_name(typeid(e)) + ")";
+  } catch (...) {
+    return "an exception of unknown type (not a std::exception)";
+  }
+}
+
+/// Test hook for tests/test_coupled_launch.py: HYBRID_MPM_TEST_FAULT=<where>@<step> throws once,
+/// at the first exchange at or after LAMMPS step <step>: `exchange` a std::runtime_error while
+/// the exchange is computed, `after` one in the work after its acknowledgement, `unknown` a
+/// non-standard exception outside the exchange's own handlers. Unset: does nothing.
+class TestFault {
+ public:
+  TestFault() {
+    const char* v = std::getenv("HYBRID_MPM_TEST_FAULT");
+    if (v == nullptr || *v == '\0') return;
+    spec_ = v;
+    const auto at = spec_.find('@');
+    where_ = spec_.substr(0, at);
+    if (at != std::string::npos) step_ = std::atoll(spec_.c_str() + at + 1);
+  }
+  void check(const char* where, std::int64_t step) {
+    if (fired_ || spec_.empty() || where_ != where || step < step_) return;
+    fired_ = true;
+    if (where_ == "unknown") throw 17;  // not a std::exception
+    throw std::runtime_error("test fault HYBRID_MPM_TEST_FAULT=" + spec_ + " at step " + std::to_string(step));
+  }
+
+ private:
+  std::string spec_, where_;
+  std::int64_t step_ = 0;
+  bool fired_ = false;
+};
+
 /// Error text for the DEM ranks, sent in place of the exchange's answers.
 coupler::StepAck error_ack(std::int64_t step, const std::string& what) {
   coupler::StepAck ack;
@@ -150,8 +209,10 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   try {
     if (!deferred_error.empty()) throw UserError(deferred_error);
     cells = continuum->plan_rezone(h.time, h.zone_source, given, oracle, discrete_cells, volumes);
-  } catch (const UserError& e) {
-    return fail(std::string("the rezone failed") + at + ": " + e.what());
+  } catch (const coupler::PeerError&) {
+    throw;
+  } catch (...) {
+    return fail(std::string("the rezone failed") + at + ": " + describe(std::current_exception()));
   }
   for (int r = 0; r < link.remote_size(); ++r) {
     link.send_array(r, coupler::kTagZones, continuum->zones(), "the new zone map" + at);
@@ -161,16 +222,23 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   std::vector<coupler::GrainCorrection<D>> corrections;
   try {
     corrections = continuum->complete_rezone(grains);
-  } catch (const UserError& e) {
-    return fail(std::string("the rezone failed") + at + ": " + e.what());
+  } catch (const coupler::PeerError&) {
+    throw;
+  } catch (...) {
+    return fail(std::string("the rezone failed") + at + ": " + describe(std::current_exception()));
   }
   for (int r = 0; r < link.remote_size(); ++r)
     link.send_array(r, coupler::kTagCorrections, corrections, "the grain corrections" + at);
   const auto support = link.receive(0, {coupler::kTagSupport}, "the grains' support force" + at).as_array<double>();
   if (support.size() != 3) return fail("protocol error: the grains' support force has " +
                                        std::to_string(support.size()) + " components");
-  continuum->balance_support(Eigen::Map<const Eigen::Vector3d>(support.data()).head<D>());
-  coupler::StepAck ack = continuum->totals(h.step);
+  coupler::StepAck ack;
+  try {
+    continuum->balance_support(Eigen::Map<const Eigen::Vector3d>(support.data()).head<D>());
+    ack = continuum->totals(h.step);
+  } catch (...) {
+    return fail(std::string("the rezone failed") + at + ": " + describe(std::current_exception()));
+  }
   say(opt, "step " + std::to_string(h.step) + ": rezone moved the material of " + std::to_string(ack.moved_cells) +
                " cells (" + std::to_string(ack.points_made) + " points made, " + std::to_string(ack.points_removed) +
                " removed); cells continuum/hybrid/discrete " + std::to_string(ack.zone_cells[coupler::kContinuum]) +
@@ -181,15 +249,18 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   return 0;
 }
 
-/// Serves the coupled run until Finish (returns 0) or an AbortNote (returns 1).
+/// Serves the coupled run until Finish (returns 0), an AbortNote (returns 1) or a failure it
+/// reported to the DEM ranks (returns 2). `step` follows the last step header.
 template <int D>
-int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions& opt, const std::atomic<bool>* ended) {
+int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions& opt,
+               const std::atomic<bool>* ended, std::int64_t& step) {
   std::string deferred_error;  // a failure after the last acknowledgement, reported at the next exchange
   std::unique_ptr<CoupledContinuum<D>> built;
+  TestFault fault;
   try {
     built = std::make_unique<CoupledContinuum<D>>(hello);
-  } catch (const std::exception& e) {  // e.g. an output directory that cannot be created
-    deferred_error = std::string("the MPM process could not set up the continuum: ") + e.what();
+  } catch (...) {  // e.g. an output directory that cannot be created
+    deferred_error = "the MPM process could not set up the continuum: " + describe(std::current_exception());
   }
   const double idle = hello.idle_timeout;
   long steps = 0;
@@ -201,7 +272,9 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
         idle, ended);
     if (m.tag == coupler::kTagStep) {
       const auto h = m.as<coupler::StepHeader>();
+      step = h.step;
       const std::string at = " at step " + std::to_string(h.step);
+      if (h.kind == coupler::kStepCouple) fault.check("unknown", h.step);
       if (h.kind == coupler::kStepRezone) {
         if (rezone<D>(link, built.get(), h, deferred_error, opt) != 0) return 2;
         continue;
@@ -220,8 +293,10 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
           if (h.kind == coupler::kStepLoad)  // the DEM side continues with the saved zones
             for (int r = 0; r < link.remote_size(); ++r)
               link.send_array(r, coupler::kTagZones, built->zones(), "the zone map of the loaded state");
-        } catch (const UserError& e) {
-          ack = error_ack(h.step, e.what());
+        } catch (const coupler::PeerError&) {
+          throw;
+        } catch (...) {
+          ack = error_ack(h.step, describe(std::current_exception()));
         }
         ack.step = h.step;
         say(opt, std::string(h.kind == coupler::kStepSave ? "saved the state to " : "loaded the state from ") + path);
@@ -240,13 +315,16 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
       if (!deferred_error.empty()) ack = error_ack(h.step, deferred_error);  // (also: no continuum)
       else {
         try {
+          fault.check("exchange", h.step);
           built->advance_to(h.time);
           const auto replies = built->agree(nodes);
           for (int r = 0; r < link.remote_size(); ++r)
             link.send_array(r, coupler::kTagNodeReply, replies[r], "the node velocities" + at);
           ack = built->grid_totals(h.step);
-        } catch (const UserError& e) {
-          ack = error_ack(h.step, std::string("the continuum failed") + at + ": " + e.what());
+        } catch (const coupler::PeerError&) {
+          throw;
+        } catch (...) {
+          ack = error_ack(h.step, "the continuum failed" + at + ": " + describe(std::current_exception()));
         }
       }
       ack_all(link, ack, "the acknowledgement of step " + std::to_string(h.step));
@@ -259,13 +337,13 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
       std::vector<std::vector<coupler::GrainRecord>> grains;
       if (h.output) grains = receive_from_all<coupler::GrainRecord>(link, coupler::kTagGrains, "the grains" + at);
       try {
+        fault.check("after", h.step);
         built->complete_step();
         if (h.output) built->write_frame(grains, h.step);
         if (h.next_time > h.time) built->advance_to(h.next_time);
-      } catch (const UserError& e) {
-        deferred_error = std::string("the continuum failed after step ") + std::to_string(h.step) + ": " + e.what();
-      } catch (const std::exception& e) {
-        deferred_error = std::string("the continuum's output failed") + at + ": " + e.what();
+      } catch (...) {
+        deferred_error = "the continuum failed after step " + std::to_string(h.step) + ": " +
+                         describe(std::current_exception());
       }
     } else if (m.tag == coupler::kTagFinish) {
       const auto f = m.as<coupler::Finish>();
@@ -284,6 +362,32 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
       link.mark(coupler::Link::State::kAborted);
       return 1;
     }
+  }
+}
+
+/// serve_loop with a last line of defence: a failure its own handlers did not catch is printed
+/// and sent to every DEM rank as an error acknowledgement (whatever LAMMPS waits for in an
+/// exchange, it takes a StepAck as the MPM process's error), so LAMMPS stops at once naming it.
+template <int D>
+int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions& opt, const std::atomic<bool>* ended) {
+  std::int64_t step = -1;
+  try {
+    return serve_loop<D>(link, hello, opt, ended, step);
+  } catch (const coupler::PeerError&) {
+    throw;  // the connection itself failed: run_coupled decides (abort or end)
+  } catch (...) {
+    const std::string what = "the MPM process failed" + (step >= 0 ? " at step " + std::to_string(step) : "") +
+                             ": " + describe(std::current_exception());
+    error_line(what);
+    const coupler::StepAck ack = error_ack(step, what);
+    for (int r = 0; r < link.remote_size(); ++r) {
+      try {  // small enough to go out at once; bounded anyway
+        coupler::send_msg(link.comm(), r, coupler::kTagStepAck, ack, 5.0, "the error report to LAMMPS");
+      } catch (const coupler::PeerError&) {
+      }
+    }
+    link.mark(coupler::Link::State::kAborted);
+    return 2;
   }
 }
 
@@ -345,6 +449,9 @@ int run_coupled(const CoupledOptions& opt) {
       rc = 1;
     } catch (const coupler::PeerError& e) {
       error_line(e.what());
+      rc = 2;
+    } catch (...) {  // outside the exchanges (e.g. out of memory in the handshake)
+      error_line("the MPM process failed: " + describe(std::current_exception()));
       rc = 2;
     }
     // After Finish LAMMPS may go on with uncoupled runs for as long as it likes; after an

@@ -8,6 +8,7 @@
 
 #include "coupler/oracle.hpp"
 #include "coupler/stencil.hpp"
+#include "coupler/tuning.hpp"
 #include "coupler/zones.hpp"
 #include "mpm/state_file.hpp"
 
@@ -71,16 +72,6 @@ Scene coupled_scene(const coupler::Hello& hello) {
   scene.output.progress_interval = 0;
   return scene;
 }
-
-namespace {
-/// Share of the support force each exchange forgets. Both sides feel the force through their
-/// transfer weights, which smooth it: a node-to-node oscillating part acts on neither side,
-/// so the agreement cannot correct it and a pure integral (no leak) lets it grow without
-/// bound (measured in a settled column: vertical stress 10 % above the weight). A 10 % leak
-/// keeps it bounded and leaves the steady support within a few percent.
-constexpr double kSupportLeak = 0.1;
-
-}  // namespace
 
 template <int D>
 CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
@@ -485,7 +476,7 @@ void CoupledContinuum<D>::advance_to(double time) {
   const double h = span / substeps;
   for (int k = 0; k + 1 < substeps; ++k) {
     solver_.step(h);
-    if (solver_.steps() % 50 == 0) solver_.sort_points_by_cell();
+    if (solver_.steps() % kSortEvery == 0) solver_.sort_points_by_cell();
   }
   solver_.p2g(h);
   solver_.grid_update(h);
@@ -570,7 +561,7 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
         // kinetic energy), so it is not carried into the next interval.
         const bool passive = old_force[t].dot(v_dem - v_mpm) <= 0.0;
         const double carry = old_mass[t] > 0 && passive ? std::min(1.0, reduced / old_mass[t]) : 0.0;
-        Vec<D> force = ((1.0 - kSupportLeak) * carry) * old_force[t];
+        Vec<D> force = ((1.0 - coupler::kSupportLeak) * carry) * old_force[t];
         if (interval_ > 0) force += gain * m_dem * (common - v_dem) / interval_;
         support_force_[k] = force;
         support_mass_[k] = reduced;

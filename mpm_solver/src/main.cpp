@@ -1,5 +1,6 @@
 // mpm_solver: runs a pure-MPM scene from a TOML scene file, or (--coupled) serves as the
 // continuum side of a coupled run with LAMMPS (mpm/coupled.hpp).
+#include <mpi.h>
 #include <omp.h>
 #include <sys/resource.h>
 
@@ -103,7 +104,26 @@ int main(int argc, char** argv) {
     mpm::CoupledOptions copt;
     copt.hello_timeout = opt.peer_timeout;
     copt.quiet = opt.quiet;
-    return mpm::run_coupled(copt);
+    // run_coupled reports its own failures; this is the last line of defence: a failure
+    // escaping it must end the whole MPI job, since LAMMPS would otherwise wait for its timeout.
+    try {
+      return mpm::run_coupled(copt);
+    } catch (...) {
+      std::string what = "an exception of unknown type";
+      try {
+        throw;
+      } catch (const std::exception& e) {
+        what = e.what();
+      } catch (...) {
+      }
+      std::fprintf(stderr, "mpm_solver: internal error in the coupled run: %s; aborting the MPI job\n", what.c_str());
+      std::fflush(stderr);
+      int initialized = 0, finalized = 0;
+      MPI_Initialized(&initialized);
+      MPI_Finalized(&finalized);
+      if (initialized && !finalized) MPI_Abort(MPI_COMM_WORLD, 3);
+      return 3;
+    }
   }
   if (opt.scene_path.empty()) {
     std::fprintf(stderr, "mpm_solver: error: a scene file is required (or --coupled)\nRun with --help for more information.\n");

@@ -257,6 +257,10 @@ void Solver<D>::p2g(double dt) {
   const double stress_scale = dt * coupler::kQuadraticInverseInertia / (dx * dx);
   const std::size_t span = stencil_span(grid_);
   const int n_threads = active_threads();
+  // Threads that actually ran: OpenMP may give fewer than asked (a thread limit, dynamic
+  // adjustment, a call from inside another parallel region), so the points are split by
+  // the team obtained and only the grids of that team are summed.
+  int team = 1;
 
   // Clear what the last step touched.
   std::fill(grid_.mass.begin() + active_lo_, grid_.mass.begin() + active_hi_, 0.0);
@@ -265,6 +269,8 @@ void Solver<D>::p2g(double dt) {
 #pragma omp parallel num_threads(n_threads)
   {
     const int t = omp_get_thread_num();
+    const int n = omp_get_num_threads();  // <= n_threads, the same for every member
+    if (t == 0) team = n;
     ThreadGrid& tg = thread_grids_[t];
     double* mass = t == 0 ? grid_.mass.data() : tg.mass.data();
     Vec<D>* momentum = t == 0 ? grid_.momentum.data() : tg.momentum.data();
@@ -272,7 +278,7 @@ void Solver<D>::p2g(double dt) {
       std::fill(mass + tg.lo, mass + tg.hi, 0.0);
       std::fill(momentum + tg.lo, momentum + tg.hi, Vec<D>::Zero());
     }
-    const std::size_t begin = n_points * t / n_threads, end = n_points * (t + 1) / n_threads;
+    const std::size_t begin = n_points * t / n, end = n_points * (t + 1) / n;
     std::size_t lo = grid_.num_nodes(), hi = 0;
     for (std::size_t p = begin; p < end; ++p) {
       const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
@@ -295,17 +301,18 @@ void Solver<D>::p2g(double dt) {
     tg.hi = std::max(lo, hi);
   }
   std::size_t lo = grid_.num_nodes(), hi = 0;
-  for (int t = 0; t < n_threads; ++t) {
+  // Grids of threads outside this call's team hold an earlier call's sums: never read them.
+  for (int t = 0; t < team; ++t) {
     lo = std::min(lo, thread_grids_[t].lo);
     hi = std::max(hi, thread_grids_[t].hi);
   }
   hi = std::max(lo, hi);
   // Sum the other threads' contributions into the main grid in thread order
-  // (fixed order: results do not depend on scheduling).
-  if (n_threads > 1) {
-#pragma omp parallel for schedule(static) num_threads(n_threads)
+  // (fixed order: results do not depend on scheduling, only on the team size).
+  if (team > 1) {
+#pragma omp parallel for schedule(static) num_threads(team)
     for (std::size_t k = lo; k < hi; ++k)
-      for (int t = 1; t < n_threads; ++t) {
+      for (int t = 1; t < team; ++t) {
         const ThreadGrid& tg = thread_grids_[t];
         if (k >= tg.lo && k < tg.hi) {
           grid_.mass[k] += tg.mass[k];
@@ -470,7 +477,6 @@ RunProgress run(Solver<D>& solver, const RunOptions& options, const std::functio
   bool state_written = true;
   double next_output = std::min(interval, end);
   const double tiny = 1e-12 * std::max(1.0, end);
-  constexpr int kSortEvery = 50;
   const long first_step = solver.steps();
   auto rate = [&](double wall) { return (solver.steps() - first_step) * double(solver.points().size()) / wall; };
   while (solver.time() < end - tiny && (options.max_steps <= 0 || solver.steps() - first_step < options.max_steps)) {

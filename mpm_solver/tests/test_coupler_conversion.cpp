@@ -346,3 +346,36 @@ TEST(coupler_conversion, CellIndexRoundTrip2D) { cell_index_round_trip<2>(); }
 TEST(coupler_conversion, CellIndexRoundTrip3D) { cell_index_round_trip<3>(); }
 TEST(coupler_conversion, PartialSumsAddUp2D) { partial_sums_add_up<2>(); }
 TEST(coupler_conversion, PartialSumsAddUp3D) { partial_sums_add_up<3>(); }
+
+namespace {
+/// The sum over DEM ranks packs BodySums field by field: every summable value goes out and comes
+/// back to its own field, the cell index is never touched.
+template <int D>
+void summed_fields_round_trip() {
+  coupler::BodySums<D> s;
+  s.moments.cell = 12345;
+  double next = 1.0;
+  std::size_t listed = 0;
+  coupler::for_each_summed_field<D>(s, [&](double* p, int n) {
+    for (int i = 0; i < n; ++i) p[i] = next++;
+    listed += static_cast<std::size_t>(n);
+  });
+  ASSERT_EQ(listed, coupler::kBodySumsValues<D>);
+  std::vector<double> packed(coupler::kBodySumsValues<D>, -1.0);
+  coupler::pack_summed_fields<D>(s, packed.data());
+  for (std::size_t i = 0; i < packed.size(); ++i) EXPECT_EQ(packed[i], 1.0 + static_cast<double>(i));
+  // every field by name holds what the list put there
+  EXPECT_EQ(s.moments.count, 1.0);
+  EXPECT_EQ(s.moments.mass, 2.0);
+  EXPECT_EQ(s.position_moment_[D * D - 1], static_cast<double>(coupler::kBodySumsValues<D>));
+  coupler::BodySums<D> back;
+  back.moments.cell = 7;
+  coupler::unpack_summed_fields<D>(packed.data(), back);
+  EXPECT_EQ(back.moments.cell, 7u);
+  back.moments.cell = s.moments.cell;
+  EXPECT_EQ(std::memcmp(&back, &s, sizeof s), 0) << "a field was not carried over";
+}
+}  // namespace
+
+TEST(BodySums, SummedFieldsRoundTrip2D) { summed_fields_round_trip<2>(); }
+TEST(BodySums, SummedFieldsRoundTrip3D) { summed_fields_round_trip<3>(); }

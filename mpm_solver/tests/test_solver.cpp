@@ -398,3 +398,55 @@ TEST(Seeding, DiskAndCylinderHoldTheirVolume) {
     EXPECT_NEAR(mass, scene.materials[0].density * volume, 1e-10 * mass);  // summation round-off over ~1e6 points
   }
 }
+
+namespace {
+/// P2G run where OpenMP gives fewer threads than the solver asks for: from inside an active
+/// parallel region with nesting off, the inner team has one thread although two are requested.
+/// Every point must still be spread once and no stale per-thread grid summed in: the grid
+/// holds exactly the points' totals and is bitwise the serial P2G's.
+template <int D>
+void p2g_with_fewer_threads_than_requested() {
+  mpm::Scene scene = base_scene(D);
+  scene.blocks.push_back(box({0.3, 0.3, 0.3}, {0.6, 0.55, 0.5}, D == 2 ? 9 : 8));
+  omp_set_num_threads(2);
+  mpm::Solver<D> s(scene);
+  s.set_min_points_per_thread(1);
+  randomise_velocities(s, 3);
+  s.p2g(1e-4);  // a full team: thread 1's scratch grid now holds these sums
+  // New state: other velocities and masses, so a stale scratch grid would show in every total.
+  randomise_velocities(s, 4);
+  for (auto& m : s.points().mass) m *= 1.5;
+  const Totals<D> points = point_totals(s);
+
+  omp_set_num_threads(1);
+  mpm::Solver<D> serial(scene);
+  serial.points() = s.points();
+  serial.p2g(1e-4);
+  omp_set_num_threads(2);
+
+  const int levels = omp_get_max_active_levels();
+  omp_set_max_active_levels(1);
+  int outer = 0;
+#pragma omp parallel num_threads(2)
+  {
+#pragma omp master
+    {
+      outer = omp_get_num_threads();
+      s.p2g(1e-4);
+    }
+  }
+  omp_set_max_active_levels(levels);
+  ASSERT_EQ(outer, 2) << "the test needs an active outer region";
+
+  expect_same(points, grid_totals(s), 1e-12);
+  const auto& g = s.grid();
+  const auto& r = serial.grid();
+  for (std::size_t k = 0; k < g.num_nodes(); ++k) {
+    ASSERT_EQ(g.mass[k], r.mass[k]) << "node " << k;
+    ASSERT_EQ(g.momentum[k], r.momentum[k]) << "node " << k;
+  }
+}
+}  // namespace
+
+TEST(Transfers, P2GWithFewerThreadsThanRequested2D) { p2g_with_fewer_threads_than_requested<2>(); }
+TEST(Transfers, P2GWithFewerThreadsThanRequested3D) { p2g_with_fewer_threads_than_requested<3>(); }

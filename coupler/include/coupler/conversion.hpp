@@ -248,6 +248,46 @@ struct BodySums {
 static_assert(std::is_trivially_copyable_v<BodySums<2>> && std::is_trivially_copyable_v<BodySums<3>>,
               "BodySums is sent over MPI as bytes");
 
+/// Number of doubles in a BodySums besides the cell index: what a sum over ranks adds up.
+template <int D>
+inline constexpr std::size_t kBodySumsValues = 2 + 2 * D + CellMoments<D>::kSpinSize + 4 * D * D;
+// A field added to CellMoments or BodySums changes the size: add it to for_each_summed_field too.
+static_assert(sizeof(BodySums<2>) == sizeof(std::uint64_t) + kBodySumsValues<2> * sizeof(double) &&
+                  sizeof(BodySums<3>) == sizeof(std::uint64_t) + kBodySumsValues<3> * sizeof(double),
+              "BodySums changed: list the new field in for_each_summed_field");
+
+/// Calls f(pointer, count) on every summable field of `s` (all but the cell index), in a fixed
+/// order, field by field: no assumption about where the fields sit in memory.
+template <int D, class Sums, class F>
+void for_each_summed_field(Sums& s, F&& f) {
+  auto& m = s.moments;
+  f(&m.count, 1);
+  f(&m.mass, 1);
+  f(m.first_moment_, D);
+  f(m.momentum_, D);
+  f(m.angular_, CellMoments<D>::kSpinSize);
+  f(m.stress_volume_, D * D);
+  f(s.inertia_, D * D);
+  f(s.velocity_moment_, D * D);
+  f(s.position_moment_, D * D);
+}
+
+/// Copies the summable fields of `s` to out[0, kBodySumsValues<D>).
+template <int D>
+void pack_summed_fields(const BodySums<D>& s, double* out) {
+  for_each_summed_field<D>(s, [&out](const double* p, int n) {
+    for (int i = 0; i < n; ++i) *out++ = p[i];
+  });
+}
+
+/// Sets the summable fields of `s` from in[0, kBodySumsValues<D>); the cell index stays.
+template <int D>
+void unpack_summed_fields(const double* in, BodySums<D>& s) {
+  for_each_summed_field<D>(s, [&in](double* p, int n) {
+    for (int i = 0; i < n; ++i) p[i] = *in++;
+  });
+}
+
 /// The mass factor and rigid velocity increment that carry a set of bodies onto a target.
 template <int D>
 struct RigidCorrection {

@@ -29,6 +29,7 @@
 #include <mpi.h>
 
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <cstring>
 #include <initializer_list>
@@ -94,6 +95,7 @@ struct ContinuumSettings {
   double critical_packing = 0.6;      ///< mu(I): stress-free below this packing fraction
   double gravity[3] = {0, 0, 0};      ///< m/s^2 (from LAMMPS fix gravity)
   std::int32_t wall_contact = kWallSlip;
+  std::int32_t pad0 = 0;              ///< explicit padding: every byte sent is defined
   double wall_friction = 0.0;
   /// Walls of the continuum (planes with wall_contact); the box faces unless the fix's
   /// `container` keyword puts them inside the box (e.g. on a DEM floor above the box bottom).
@@ -101,6 +103,7 @@ struct ContinuumSettings {
   /// Container faces the continuum may touch (face_bit in oracle.hpp; the fix's `touch`): the zone
   /// oracle does not count them as surfaces. The others are discrete boundaries (the default).
   std::uint32_t touched_faces = 0;
+  std::int32_t pad1 = 0;
   double cfl = 0.5;                   ///< MPM substep = cfl * dx / (c + |v|max)
   double grain_weight = 0.5;          ///< share of a hybrid cell's mass its grains keep
   double pic = 1.0;                   ///< grain update: 1 = take the agreed field, 0 = impulse only
@@ -125,6 +128,7 @@ struct Hello {
   std::int32_t dem_ranks = 1;
   std::int32_t model = 0;            ///< ModelId
   std::int32_t mpm_every = 1;        ///< DEM steps per exchange
+  std::int32_t pad = 0;              ///< explicit padding: every byte sent is defined
   double cell = 0;                   ///< grid cell size, m
   double dt = 0;                     ///< DEM time step, s
   double reply_timeout = 30;         ///< s the DEM side waits for each MPM reply
@@ -402,10 +406,16 @@ struct Message {
     if (!items.empty()) std::memcpy(static_cast<void*>(items.data()), data.data(), data.size());
     return items;
   }
-  /// The leading 32-bit field (the protocol version of Hello / HelloReply), or -1.
-  int leading_int() const {
-    std::int32_t v = -1;
-    if (data.size() >= sizeof v) std::memcpy(&v, data.data(), sizeof v);
+  /// The protocol version a Hello or HelloReply of another release announces (its layout may
+  /// differ everywhere else), read from that field alone: `protocol` stays the first field of
+  /// both in every protocol version (wire_layout.hpp). -1 if the message is too short.
+  int announced_protocol() const {
+    static_assert(offsetof(Hello, protocol) == 0 && offsetof(HelloReply, protocol) == 0,
+                  "the protocol version must stay the first field of Hello and HelloReply");
+    static_assert(std::is_same_v<decltype(Hello::protocol), decltype(HelloReply::protocol)>);
+    decltype(Hello::protocol) v = -1;
+    if (data.size() < offsetof(Hello, protocol) + sizeof v) return -1;
+    std::memcpy(&v, data.data() + offsetof(Hello, protocol), sizeof v);
     return v;
   }
 };
@@ -539,3 +549,5 @@ void set_peer(Link* link);
 void set_unconnected_exit_reason(const std::string& reason);
 
 }  // namespace coupler
+
+#include "coupler/wire_layout.hpp"  // pins the layout of every struct above

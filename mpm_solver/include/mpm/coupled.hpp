@@ -17,7 +17,9 @@ struct CoupledOptions {
 /// and serves it until Finish. Returns the process exit status:
 ///   0 the DEM side finished the coupled run normally;
 ///   1 the DEM side stopped on an error or ended without connecting (its reason is printed);
-///   2 the handshake was refused (version mismatch, bad parameters) or no DEM side exists.
+///   2 the handshake was refused (version mismatch, bad parameters), no DEM side exists, or the
+///     continuum failed (any exception, UserError or not: its cause is printed and sent to every
+///     DEM rank as an error acknowledgement, so LAMMPS stops at once naming it).
 /// A DEM side that does not answer in time makes it print the cause and MPI_Abort the job,
 /// since MPI_Finalize would wait for a hung peer forever.
 int run_coupled(const CoupledOptions& options);

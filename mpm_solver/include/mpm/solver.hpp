@@ -12,6 +12,12 @@
 
 namespace mpm {
 
+/// Steps between re-sorts of the points by grid cell (Solver::sort_points_by_cell), in pure and
+/// coupled runs alike: a sort costs about a step, and points, moving well under a cell per step
+/// at the CFL step, stay nearly in cell order for tens of steps, so 50 keeps the cache locality
+/// for a few percent of the run time.
+inline constexpr long kSortEvery = 50;
+
 /// A rigid boundary at the current time, as the grid update applies it.
 template <int D>
 struct RigidBoundary {

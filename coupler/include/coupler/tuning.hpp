@@ -1,0 +1,27 @@
+#pragma once
+// Tuned constants of the coupling, each defined here once with the reason for its value
+// (measurements in docs/design.md, section 5). Changing one changes results.
+
+namespace coupler {
+
+/// Share of the support force between exchanges that each exchange forgets (design.md 5.4).
+/// Both sides feel the force through their transfer weights, which smooth it: a node-to-node
+/// oscillating part acts on neither side, so the agreement cannot correct it and a pure
+/// integral lets it grow without bound (a settled column's vertical stress rose 10 % above its
+/// weight); 10 % keeps it bounded and leaves the steady support within a few percent.
+inline constexpr double kSupportLeak = 0.1;
+
+/// A grain made from points (enrichment, design.md 5.6) that an old grain overlaps shrinks to
+/// fit, down to this share of its radius, and is dropped if it would have to shrink more (an
+/// overlap would inject elastic energy). Dropping every overlapped candidate left gaps along the
+/// old packing; 0.8 closes them while a made grain stays within 20 % of the template's size
+/// (set with the handoff cycle of tests/test_adaptive_zones.py, not tuned further).
+inline constexpr double kSmallestShrink = 0.8;
+
+/// The smallest MPM cell adaptive zones accept, in mean grain diameters: with cells under 2 d the
+/// oracle's packing fraction per cell counts one or two grains and a cell's rests land on a few
+/// points (a published 2D collapse with 1.74 d cells went non-finite as its continuum shrank,
+/// issue 14, while the same scene ran with 5 d cells).
+inline constexpr double kSmallestCellInGrains = 2.0;
+
+}  // namespace coupler
