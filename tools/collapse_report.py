@@ -185,6 +185,18 @@ def slab_3d(aspect: float, np_: int, out: Path) -> dict:
                 difference=abs(ref.runout - runs["liggghts"].runout) / (0.5 * (ref.runout + runs["liggghts"].runout)))
 
 
+def continuum_note() -> str:
+    """Which continuum the runs used: the hybrids the material the 2D deck names by default (calibrated
+    from its grains), pure MPM its scene's own constants."""
+    import tomllib
+    path = REPO / "input_decks" / "materials" / "disks_2d.toml"
+    c = tomllib.loads(path.read_text())["continuum"]
+    return (f"Continuum of the hybrid runs: the material calibrated from the grains, `{path.relative_to(REPO)}` "
+            f"(tools/calibrate.py: Drucker-Prager {c['friction_angle']:.2f} degrees, E = {c['youngs_over_kn']:.3f} kn, "
+            f"nu = {c['poisson']:.3f}); pure MPM runs with its scene's constants (Drucker-Prager 30 degrees, mu(I) "
+            "of glass beads), which are not calibrated.")
+
+
 def make_report(runs: list[Outcome], aspect: float, width: float, np_: int, codes: dict | None,
                 command: str = "tools/collapse_report.py") -> str:
     ref = runs[0]
@@ -200,7 +212,7 @@ def make_report(runs: list[Outcome], aspect: float, width: float, np_: int, code
              "Lajeunesse et al. 2005). Surface error: RMS difference of the final surface height from the "
              "reference's, from the wall to the farther front, over H0. Speedup: the reference's wall time over "
              "the run's, side by side in this job. KE history error: RMS difference of the kinetic energy "
-             "against time from the reference's, over its duration, over its peak.", "",
+             "against time from the reference's, over its duration, over its peak. " + continuum_note(), "",
              "| run | (Lf - L0)/L0 | runout error | in published range | surface error vs DEM | KE history error | "
              "final height / L0 | size | steps | ms per step | wall s | speedup vs DEM |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
