@@ -349,7 +349,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   force_reneighbor = 1;      // rezones delete and create grains at a pre_exchange
   create_attribute = 1;      // grains made from points get a weight and no support (set_arrays)
   next_reneighbor = -1;
-  maxexchange = 4;
+  maxexchange = 10;         // weight, support, atom_stress (pack_exchange)
 
   grow_arrays(atom->nmax);
   atom->add_callback(Atom::GROW);
@@ -380,6 +380,7 @@ FixHybridMPM::~FixHybridMPM()
   atom->delete_callback(id, Atom::RESTART);
   memory->destroy(weight);
   memory->destroy(support);
+  memory->destroy(atom_stress);
   if (stress_id && modify->find_compute(stress_id) >= 0) modify->delete_compute(stress_id);
   delete[] stress_id;
   if (!link) return;
@@ -965,8 +966,8 @@ void FixHybridMPM::setup(int /*vflag*/)
     continuum_start = last_ack->energy;
     ledger_started = true;
   }
-  // a rezone left pending at the end of the last run refers to atom indices that setup has
-  // since reordered; the oracle runs again at its next step
+  // a rezone left pending at the end of the last run is dropped (its stress is of a step
+  // before the commands between the runs); the oracle runs again at its next step
   rezone_pending = false;
   if (!converted && (!region_ids.empty() || adapt_every > 0))
     schedule_rezone(region_ids.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
@@ -979,8 +980,9 @@ void FixHybridMPM::setup(int /*vflag*/)
 
 /* ----------------------------------------------------------------------
    a rezone at the next step's pre_exchange, with the Love-Weber stress of
-   this step (kept by local index: atoms are neither sorted nor exchanged
-   until then)
+   this step, kept per atom: another fix's pre_exchange may delete, add or
+   move atoms before ours (fix evaporate, deposit, balance), so a local
+   index is not the same atom's then; LAMMPS carries atom_stress with them
 ------------------------------------------------------------------------- */
 
 void FixHybridMPM::schedule_rezone(int source)
@@ -995,9 +997,8 @@ void FixHybridMPM::store_atom_stress()
 {
   Compute *c = stress_compute();
   c->compute_peratom();
-  atom_stress.assign(static_cast<std::size_t>(atom->nlocal) * 6, 0.0);
   for (int i = 0; i < atom->nlocal; i++)
-    for (int k = 0; k < 6; k++) atom_stress[6 * i + k] = c->array_atom[i][k];
+    for (int k = 0; k < 6; k++) atom_stress[i][k] = c->array_atom[i][k];
 }
 
 /* ---------------------------------------------------------------------- */
@@ -1009,8 +1010,6 @@ void FixHybridMPM::pre_exchange()
   else rezone<3>(rezone_source);
   rezone_pending = false;
   converted = true;
-  atom_stress.clear();
-  atom_stress.shrink_to_fit();
 }
 
 /* ----------------------------------------------------------------------
@@ -1307,7 +1306,7 @@ void FixHybridMPM::rezone(int source)
       if constexpr (D == 2) omega_i[0] = omega[i][2];
       else omega_i = Eigen::Map<const Eigen::Vector3d>(omega[i]);
       Eigen::Matrix<double, D, D> sv;
-      const double *sa = &atom_stress[6 * i];    // xx yy zz xy xz yz
+      const double *sa = atom_stress[i];    // xx yy zz xy xz yz
       if constexpr (D == 2) sv << sa[0], sa[3], sa[3], sa[1];
       else sv << sa[0], sa[3], sa[4], sa[3], sa[1], sa[5], sa[4], sa[5], sa[2];
       const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
@@ -1809,8 +1808,7 @@ void FixHybridMPM::close_dem_bracket()
 
 double FixHybridMPM::memory_usage()
 {
-  return static_cast<double>(sizeof(*this)) + atom->nmax * 4 * sizeof(double) + zones.size() +
-      atom_stress.size() * sizeof(double);
+  return static_cast<double>(sizeof(*this)) + atom->nmax * 10 * sizeof(double) + zones.size();
 }
 
 /* ----------------------------------------------------------------------
@@ -1916,39 +1914,46 @@ void FixHybridMPM::state_request(int kind, const std::string &path)
 }
 
 /* ----------------------------------------------------------------------
-   per-atom weight: allocate, copy, exchange with atoms, restart
+   per-atom weight, support and stored stress: allocate, copy, exchange
+   with atoms; restart files hold weight and support only (a rezone left
+   pending at the end of a run is dropped, see setup)
 ------------------------------------------------------------------------- */
 
 void FixHybridMPM::grow_arrays(int nmax)
 {
   memory->grow(weight, nmax, "hybrid/mpm:weight");
   memory->grow(support, nmax, 3, "hybrid/mpm:support");
+  memory->grow(atom_stress, nmax, 6, "hybrid/mpm:atom_stress");
 }
 
 void FixHybridMPM::copy_arrays(int i, int j, int /*delflag*/)
 {
   weight[j] = weight[i];
   for (int a = 0; a < 3; a++) support[j][a] = support[i][a];
+  for (int k = 0; k < 6; k++) atom_stress[j][k] = atom_stress[i][k];
 }
 
 void FixHybridMPM::set_arrays(int i)
 {
   weight[i] = 1.0;
   support[i][0] = support[i][1] = support[i][2] = 0.0;
+  for (int k = 0; k < 6; k++) atom_stress[i][k] = 0.0;    // made after the stress was stored: none
 }
 
 int FixHybridMPM::pack_exchange(int i, double *buf)
 {
   buf[0] = weight[i];
   for (int a = 0; a < 3; a++) buf[1 + a] = support[i][a];
-  return 4;
+  for (int k = 0; k < 6; k++) buf[4 + k] = atom_stress[i][k];
+  return 10;
 }
 
 int FixHybridMPM::unpack_exchange(int nlocal, double *buf)
 {
   weight[nlocal] = buf[0];
   for (int a = 0; a < 3; a++) support[nlocal][a] = buf[1 + a];
-  return 4;
+  for (int k = 0; k < 6; k++) atom_stress[nlocal][k] = buf[4 + k];
+  return 10;
 }
 
 int FixHybridMPM::pack_restart(int i, double *buf)

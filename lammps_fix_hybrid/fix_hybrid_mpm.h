@@ -134,7 +134,9 @@ class FixHybridMPM : public Fix {
   double clock_time;                      // DEM time at clock_step (the coupling's clock)
   bigint clock_step;                      // -1 until the first setup
   double clock_dt;
-  std::vector<double> atom_stress;        // per local atom stress*volume before a rezone (6 each)
+  // per-atom stress*volume (xx yy zz xy xz yz) stored for the next rezone: a per-atom array
+  // LAMMPS carries with the atoms (sorting, exchange, other fixes' deletions) like weight
+  double **atom_stress = nullptr;
   char *stress_id;                        // compute stress/atom for the Love-Weber stress
   Compute *stress_compute() const;        // that compute; an error if it was deleted
   void dem_gravity(double *g) const;      // the sum of the fix gravity commands' accelerations

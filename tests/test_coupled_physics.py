@@ -317,3 +317,59 @@ def test_conversion_keeps_mass_momentum_and_angular_momentum_exactly(tmp_path, h
     for k in (12, 13, 14):
         assert abs(after[f"f_couple[{k}]"] - before[f"f_couple[{k}]"]) <= 1e-13 * l_scale, k
     assert abs(before["f_couple[14]"]) > 1e-6 * l_scale  # there was angular momentum to keep
+
+
+def test_new_points_stress_is_that_of_their_grains_when_another_fix_reorders_atoms(tmp_path, hybrid_programs):
+    """The Love-Weber stress of the points made at step 1 comes from the grains' per-atom
+    virial of step 0, held by the fix until the rezone at step 1's pre_exchange. A fix whose
+    pre_exchange runs first and reorders the atoms in between (here fix evaporate, which
+    deletes the column's top rows and fills their slots with the last atoms: the bottom
+    grains, created last so they are the ones that become points) must not change it: the
+    points' stress equals that of the same deck with fix evaporate defined after
+    hybrid/mpm (its deletions then follow the rezone). Held by local index, the moved
+    grains took the deleted top grains' stress. One LAMMPS rank, no atom sorting, so the
+    order of the atoms is the order of their creation."""
+    text = COLUMN_DECK.read_text()
+    text = text.replace("create_box      1 box\n", "create_box      1 box\natom_modify     sort 0 0.0\n")
+    bed = ("region          bed block 0.0009 0.0391 0.0009 0.05 -0.001 0.001 units box\n"
+           "create_atoms    1 region bed\n")
+    assert bed in text
+    text = text.replace(bed, "".join(  # top rows first, the core's bottom rows last
+        f"region          bed{k} block 0.0009 0.0391 {lo} {hi} -0.001 0.001 units box\n"
+        f"create_atoms    1 region bed{k}\n"
+        for k, (lo, hi) in enumerate([(0.0265, 0.05), (0.0125, 0.0265), (0.0009, 0.0125)])) +
+        # the bottom row (at sqrt(3)/2 d) onto the floor: the deck's damped settling would take
+        # far longer than its steps to let the column fall there, and its grains would not touch
+        "displace_atoms  all move 0 -0.000732 0 units box\n")
+    evaporate = ("region          top block INF INF 0.045 INF -0.001 0.001 units box\n"
+                 "fix             evap all evaporate 1 1000 top 4711\n")
+    couple = "fix             couple all hybrid/mpm"
+    assert couple in text
+    text = re.sub(r"^(thermo_style    custom step atoms f_couple.*)$", r"\1 f_evap", text, flags=re.M)
+    # the step count restarts before the fixes are defined (fix evaporate counts from its definition)
+    assert "reset_timestep  0\n" in text
+    text = text.replace("reset_timestep  0\n", "").replace("region          core", "reset_timestep  0\nregion          core")
+    decks = {"first": text.replace(couple, evaporate + couple),
+             "after": re.sub(r"(fix\s+couple all hybrid/mpm.*?\n(?!\s))", r"\1" + evaporate, text, flags=re.S)}
+    assert decks["after"] != text
+    points, atoms = {}, {}
+    for name, deck_text in decks.items():
+        run_dir = tmp_path / name
+        run_dir.mkdir()
+        (run_dir / "deck.lmp").write_text(deck_text)
+        log = run_deck(run_dir, run_dir / "deck.lmp", 1, "-var", "nsteps", "1")
+        rows = thermo_rows(log)
+        assert rows[-1]["Step"] == 1 and rows[-1]["f_couple[3]"] > 0
+        assert rows[-1]["f_evap"] >= 20  # the top rows went at step 1
+        atoms[name] = rows[-1]["Atoms"]
+        frame = mpm_results.Run(run_dir / "frames").frame(-1)
+        order = np.lexsort((frame["position"][:, 0], frame["position"][:, 1]))
+        points[name] = {k: frame[k][order] for k in ("position", "stress")}
+    assert atoms["first"] == atoms["after"]
+    first, after = points["first"], points["after"]
+    assert first["position"].shape == after["position"].shape
+    assert np.abs(first["position"] - after["position"]).max() < 1e-12
+    scale = np.abs(after["stress"]).max()
+    assert scale > 0.1 * 9.81 * 0.0055 / 0.04  # the grains touch: a tenth of the column's weight per width
+    diff = np.abs(first["stress"] - after["stress"]).max()
+    assert diff <= 1e-9 * scale, f"points' stress differs by {diff / scale:.3g} of its largest value"
