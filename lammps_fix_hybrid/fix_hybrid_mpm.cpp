@@ -61,6 +61,8 @@ using namespace FixConst;
 using MathConst::MY_PI;
 
 static constexpr double BIG = 1.0e20;
+// per-atom values that travel with a grain (pack_exchange): weight, support (3), stored stress (6)
+static constexpr int kPerAtomValues = 1 + 3 + 6;
 using coupler::kSmallestCellInGrains;    // tuned constants: coupler/tuning.hpp
 using coupler::kSmallestShrink;
 
@@ -349,7 +351,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   force_reneighbor = 1;      // rezones delete and create grains at a pre_exchange
   create_attribute = 1;      // grains made from points get a weight and no support (set_arrays)
   next_reneighbor = -1;
-  maxexchange = 10;         // weight, support, atom_stress (pack_exchange)
+  maxexchange = kPerAtomValues;
 
   grow_arrays(atom->nmax);
   atom->add_callback(Atom::GROW);
@@ -1808,7 +1810,7 @@ void FixHybridMPM::close_dem_bracket()
 
 double FixHybridMPM::memory_usage()
 {
-  return static_cast<double>(sizeof(*this)) + atom->nmax * 10 * sizeof(double) + zones.size();
+  return static_cast<double>(sizeof(*this)) + atom->nmax * kPerAtomValues * sizeof(double) + zones.size();
 }
 
 /* ----------------------------------------------------------------------
@@ -1945,7 +1947,7 @@ int FixHybridMPM::pack_exchange(int i, double *buf)
   buf[0] = weight[i];
   for (int a = 0; a < 3; a++) buf[1 + a] = support[i][a];
   for (int k = 0; k < 6; k++) buf[4 + k] = atom_stress[i][k];
-  return 10;
+  return kPerAtomValues;
 }
 
 int FixHybridMPM::unpack_exchange(int nlocal, double *buf)
@@ -1953,7 +1955,7 @@ int FixHybridMPM::unpack_exchange(int nlocal, double *buf)
   weight[nlocal] = buf[0];
   for (int a = 0; a < 3; a++) support[nlocal][a] = buf[1 + a];
   for (int k = 0; k < 6; k++) atom_stress[nlocal][k] = buf[4 + k];
-  return 10;
+  return kPerAtomValues;
 }
 
 int FixHybridMPM::pack_restart(int i, double *buf)

@@ -57,6 +57,13 @@ def output(proc) -> str:
     return proc.stdout + proc.stderr
 
 
+def with_fixed_faces(text: str) -> str:
+    """The deck with a fixed y boundary (adaptive zones and the continuum's walls need fixed faces)."""
+    out = text.replace("boundary        p f p", "boundary        f f p")
+    assert out != text
+    return out
+
+
 def replace_fix_line(text: str, new_args: str) -> str:
     """Replaces the keywords of the fix hybrid/mpm line."""
     out = re.sub(r"^(fix\s+couple\s+all\s+hybrid/mpm)\s.*$", rf"\1 {new_args}", text, flags=re.M)
@@ -158,7 +165,7 @@ def safe_step(share: float) -> float:
 def timestep_deck(tmp_path: Path, timestep: str, fix_args: str) -> Path:
     def edit(text):
         text = re.sub(r"^timestep\s.*$", f"timestep {timestep}", text, flags=re.M)
-        text = text.replace("boundary        p f p", "boundary        f f p")
+        text = with_fixed_faces(text)
         text = text.replace("fix             2d all", "region lower block INF INF INF 0.02 INF INF units box\n"
                                                      "fix             2d all")
         return replace_fix_line(text, fix_args)
@@ -236,8 +243,7 @@ friction_angle = 17.46
 
 
 def test_adaptive_zones_refuse_cells_under_two_grain_diameters(tmp_path, hybrid_programs):
-    deck = deck_copy(tmp_path, lambda t: replace_fix_line(t.replace("boundary        p f p", "boundary        f f p"),
-                                                          "cell 0.0035 adaptive 10"))
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(with_fixed_faces(t), "cell 0.0035 adaptive 10"))
     proc, elapsed = launch("-np", "2", str(deck), "-log", "none", "-var", "nsteps", "20", timeout=60)
     text = output(proc)
     assert proc.returncode != 0, text
@@ -284,8 +290,7 @@ def test_touched_floor_lets_the_continuum_reach_it(tmp_path, hybrid_programs, to
     bottom row is, away from the side walls (6 of its 10 cells), or all of it (`touch all`). The
     faces travel to the MPM process in the handshake, which runs the oracle."""
     def edit(text):
-        text = text.replace("boundary        p f p", "boundary        f f p")  # adaptive needs fixed faces
-        return replace_fix_line(text, f"cell 0.01 adaptive 10 depth 0.012 band 0.008 {touch}")
+        return replace_fix_line(with_fixed_faces(text), f"cell 0.01 adaptive 10 depth 0.012 band 0.008 {touch}")
     log = tmp_path / "log.lammps"
     proc, _ = launch("-np", "2", str(deck_copy(tmp_path, edit)), "-var", "nsteps", "20", "-log", str(log),
                      timeout=120)
@@ -453,10 +458,8 @@ def test_gravity_changed_between_runs_is_refused(tmp_path, hybrid_programs, magn
 def test_deleted_stress_compute_is_a_clear_error(tmp_path, hybrid_programs):
     """Adaptive zones use the fix's compute stress/atom at every run's setup: deleting it between
     runs is an error naming it (it used to index the compute list with -1)."""
-    def edit(text):
-        text = text.replace("boundary        p f p", "boundary        f f p")
-        return replace_fix_line(text, "cell 0.01 adaptive 10 every 10")
-    deck = deck_copy(tmp_path, edit, extra="\nuncompute couple_hybrid_stress\nrun 10\n")
+    deck = deck_copy(tmp_path, lambda t: replace_fix_line(with_fixed_faces(t), "cell 0.01 adaptive 10 every 10"),
+                     extra="\nuncompute couple_hybrid_stress\nrun 10\n")
     proc, elapsed = launch("-np", "2", str(deck), "-log", "none", "-var", "nsteps", "20", timeout=60)
     text = output(proc)
     assert proc.returncode != 0, text

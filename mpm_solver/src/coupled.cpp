@@ -115,11 +115,11 @@ std::string type_name(const std::type_info& type) {
   return out;
 }
 
-/// What a caught exception was, as one sentence for the log and the DEM side: a UserError's
-/// own text, else its message followed by its type (an HDF5 or Eigen failure, a bug). Every
-/// failure of the continuum goes through here, so that none leaves LAMMPS waiting for an
-/// answer until its timeout.
-std::string describe(const std::exception_ptr& error) {
+}  // namespace
+
+// Every failure of the continuum goes through here (an HDF5 or Eigen failure, a bug alike), so
+// that none leaves LAMMPS waiting for an answer until its timeout.
+std::string describe_exception(const std::exception_ptr& error) {
   try {
     std::rethrow_exception(error);
   } catch (const UserError& e) {
@@ -132,6 +132,8 @@ std::string describe(const std::exception_ptr& error) {
     return "an exception of unknown type (not a std::exception)";
   }
 }
+
+namespace {
 
 /// Test hook for tests/test_coupled_launch.py: HYBRID_MPM_TEST_FAULT=<where>@<step> throws once,
 /// at the first exchange at or after LAMMPS step <step>: `exchange` a std::runtime_error while
@@ -212,7 +214,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   } catch (const coupler::PeerError&) {
     throw;
   } catch (...) {
-    return fail(std::string("the rezone failed") + at + ": " + describe(std::current_exception()));
+    return fail(std::string("the rezone failed") + at + ": " + describe_exception(std::current_exception()));
   }
   for (int r = 0; r < link.remote_size(); ++r) {
     link.send_array(r, coupler::kTagZones, continuum->zones(), "the new zone map" + at);
@@ -225,7 +227,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   } catch (const coupler::PeerError&) {
     throw;
   } catch (...) {
-    return fail(std::string("the rezone failed") + at + ": " + describe(std::current_exception()));
+    return fail(std::string("the rezone failed") + at + ": " + describe_exception(std::current_exception()));
   }
   for (int r = 0; r < link.remote_size(); ++r)
     link.send_array(r, coupler::kTagCorrections, corrections, "the grain corrections" + at);
@@ -237,7 +239,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
     continuum->balance_support(Eigen::Map<const Eigen::Vector3d>(support.data()).head<D>());
     ack = continuum->totals(h.step);
   } catch (...) {
-    return fail(std::string("the rezone failed") + at + ": " + describe(std::current_exception()));
+    return fail(std::string("the rezone failed") + at + ": " + describe_exception(std::current_exception()));
   }
   say(opt, "step " + std::to_string(h.step) + ": rezone moved the material of " + std::to_string(ack.moved_cells) +
                " cells (" + std::to_string(ack.points_made) + " points made, " + std::to_string(ack.points_removed) +
@@ -260,7 +262,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
   try {
     built = std::make_unique<CoupledContinuum<D>>(hello);
   } catch (...) {  // e.g. an output directory that cannot be created
-    deferred_error = "the MPM process could not set up the continuum: " + describe(std::current_exception());
+    deferred_error = "the MPM process could not set up the continuum: " + describe_exception(std::current_exception());
   }
   const double idle = hello.idle_timeout;
   long steps = 0;
@@ -296,7 +298,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         } catch (const coupler::PeerError&) {
           throw;
         } catch (...) {
-          ack = error_ack(h.step, describe(std::current_exception()));
+          ack = error_ack(h.step, describe_exception(std::current_exception()));
         }
         ack.step = h.step;
         say(opt, std::string(h.kind == coupler::kStepSave ? "saved the state to " : "loaded the state from ") + path);
@@ -324,7 +326,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         } catch (const coupler::PeerError&) {
           throw;
         } catch (...) {
-          ack = error_ack(h.step, "the continuum failed" + at + ": " + describe(std::current_exception()));
+          ack = error_ack(h.step, "the continuum failed" + at + ": " + describe_exception(std::current_exception()));
         }
       }
       ack_all(link, ack, "the acknowledgement of step " + std::to_string(h.step));
@@ -343,7 +345,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         if (h.next_time > h.time) built->advance_to(h.next_time);
       } catch (...) {
         deferred_error = "the continuum failed after step " + std::to_string(h.step) + ": " +
-                         describe(std::current_exception());
+                         describe_exception(std::current_exception());
       }
     } else if (m.tag == coupler::kTagFinish) {
       const auto f = m.as<coupler::Finish>();
@@ -377,7 +379,7 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
     throw;  // the connection itself failed: run_coupled decides (abort or end)
   } catch (...) {
     const std::string what = "the MPM process failed" + (step >= 0 ? " at step " + std::to_string(step) : "") +
-                             ": " + describe(std::current_exception());
+                             ": " + describe_exception(std::current_exception());
     error_line(what);
     const coupler::StepAck ack = error_ack(step, what);
     for (int r = 0; r < link.remote_size(); ++r) {
@@ -451,7 +453,7 @@ int run_coupled(const CoupledOptions& opt) {
       error_line(e.what());
       rc = 2;
     } catch (...) {  // outside the exchanges (e.g. out of memory in the handshake)
-      error_line("the MPM process failed: " + describe(std::current_exception()));
+      error_line("the MPM process failed: " + describe_exception(std::current_exception()));
       rc = 2;
     }
     // After Finish LAMMPS may go on with uncoupled runs for as long as it likes; after an

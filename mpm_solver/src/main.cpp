@@ -109,13 +109,7 @@ int main(int argc, char** argv) {
     try {
       return mpm::run_coupled(copt);
     } catch (...) {
-      std::string what = "an exception of unknown type";
-      try {
-        throw;
-      } catch (const std::exception& e) {
-        what = e.what();
-      } catch (...) {
-      }
+      const std::string what = mpm::describe_exception(std::current_exception());
       std::fprintf(stderr, "mpm_solver: internal error in the coupled run: %s; aborting the MPI job\n", what.c_str());
       std::fflush(stderr);
       int initialized = 0, finalized = 0;

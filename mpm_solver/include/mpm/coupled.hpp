@@ -2,9 +2,14 @@
 // The MPM side of a coupled run: `mpm_solver --coupled`, started in the same MPMD mpirun as
 // LAMMPS (lmp_hybrid, or a PLUGIN-enabled lmp with -mpicolor 0 and the hybridmpmplugin).
 // Phase 1: handshake, per-step acknowledgements, clean finish; no continuum yet.
+#include <exception>
 #include <string>
 
 namespace mpm {
+
+/// What a caught exception was, as one sentence for the log and the DEM side: a UserError's own
+/// text, else its message followed by its (demangled) type; unknown types are named as such.
+std::string describe_exception(const std::exception_ptr& error);
 
 struct CoupledOptions {
   /// Seconds to wait for the handshake (Hello) from fix hybrid/mpm: LAMMPS sends it at the
