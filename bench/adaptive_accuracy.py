@@ -35,7 +35,7 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 from collapse_report import kinetic_energy_error, thermo_kinetic_energy  # noqa: E402
 from column_collapse import combine_surfaces, points_surface, surface_error  # noqa: E402
-from dem_collapse import run as run_collapse  # noqa: E402
+from dem_collapse import run as run_collapse, run_from_settled  # noqa: E402
 from dem_silo import run_dem_silo  # noqa: E402
 from lammps_log import ledger_closure, thermo_rows  # noqa: E402
 from mpm_results import load_run  # noqa: E402
@@ -61,11 +61,8 @@ def closure(log: Path) -> float:
 def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs) -> list[dict]:
     common = dict(aspect=aspect, width=width, d=D, np_=np_)
 
-    def dem(name, seed):
-        res = run_collapse(**common, out=work / name, seed=seed)
-        if res.prepared:    # time the collapse alone, from the cached column, as the hybrid's
-            res = run_collapse(**common, out=work / name, seed=seed)
-        return res
+    def dem(name, seed):    # the collapse alone, from the cached column, as the hybrid's
+        return run_from_settled(**common, out=work / name, seed=seed)
 
     ref, other = dem(f"dem_a{aspect:g}", 12345), dem(f"dem_a{aspect:g}_seed", OTHER_SEED)
     h0 = aspect * width

@@ -29,7 +29,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 from column_collapse import surface_error  # noqa: E402
-from dem_collapse import run as run_collapse  # noqa: E402
+from dem_collapse import run as run_collapse, run_from_settled  # noqa: E402
+from calibrate import describe_material  # noqa: E402
 from dem_silo import run_dem_silo  # noqa: E402
 
 D = 0.002
@@ -38,9 +39,7 @@ RESULTS = REPO / "bench" / "results"
 
 
 def collapse(work: Path, np_: int, width: float, seed: int) -> list[dict]:
-    dem = run_collapse(2.0, width, D, np_=np_, out=work / "dem", seed=seed, timeout=7200)
-    if dem.prepared:    # collapse from the cached settled state, as the hybrids do (not from the one in memory)
-        dem = run_collapse(2.0, width, D, np_=np_, out=work / "dem", seed=seed, timeout=7200)
+    dem = run_from_settled(aspect=2.0, width=width, d=D, np_=np_, out=work / "dem", seed=seed, timeout=7200)
     reference = np.array(dem.profile).T
     rows = [dict(scene="collapse_2d", size_d=round(width / D), seed=seed, grains=dem.grains, continuum="none (DEM)",
                  runout=dem.runout, wall_s=dem.wall_time, steps=dem.steps, profile=dem.profile, height=dem.height)]
@@ -138,8 +137,8 @@ def main(argv=None) -> int:
         f"# The continuum calibrated from the grains against the decks' guessed constants\n\n"
         f"`bench/calibrated_material.py --np {a.np_} --scenes {a.scenes} --seeds {a.seeds}`, {stamp}; {a.np_} LAMMPS rank(s) for DEM and "
         f"hybrid alike (plus one MPM process for the hybrid) on a 2-core machine, side by side in one run from the same "
-        f"settled states. calibrated: `material disks_2d` (tools/calibrate.py: Drucker-Prager 14.56 degrees, "
-        f"E = 0.285 kn, nu = 0.33); guessed: `youngs kn friction 30` (the decks before the calibration). Adaptive zones, "
+        f"settled states. calibrated: {describe_material('disks_2d')}; guessed: `youngs kn friction 30` (the decks "
+        f"before the calibration). Adaptive zones, "
         f"exchange every 10, oracle every 100. The final surface is that of the grains' connected deposit. "
         f"Each hybrid is compared with the DEM of its own packing; the last rows are the DEM's own noise floor.\n\n"
         + table(rows) + "\n")

@@ -42,6 +42,7 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 DECK = REPO / "input_decks" / "calibration" / "simple_shear.lmp"
+MATERIALS = REPO / "input_decks" / "materials"
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from sphere_data import write_spheres  # noqa: E402
 
@@ -178,16 +179,16 @@ def cell_volume(rows: np.ndarray, dimension: int) -> np.ndarray:
     return rows[:, 2] * rows[:, 3] * (rows[:, 4] if dimension == 3 else 1.0)
 
 
-def prep(law: ContactLaw, n: int, seed: int, run_dir: Path, lmp: str, timeout: float) -> tuple[float, float]:
+def prep(law: ContactLaw, n: int, seed: int, run_dir: Path, lmp: str, timeout: float) -> float:
+    """Writes the loose grains, packs them at p0 (packed.restart); returns their total volume."""
     vgrains = write_grains(law, n, seed, run_dir / "grains.data")
-    wall = lammps("prep", law, run_dir, lmp, timeout, data=run_dir / "grains.data", vgrains=f"{vgrains:.12g}",
-                  seed=seed)
-    return vgrains, wall
+    lammps("prep", law, run_dir, lmp, timeout, data=run_dir / "grains.data", vgrains=f"{vgrains:.12g}")
+    return vgrains
 
 
 def elastic(law: ContactLaw, vgrains: float, run_dir: Path, lmp: str, timeout: float, eps: float) -> dict:
     """P-wave modulus and lambda from the relaxed stress before and after a uniaxial strain eps."""
-    wall = lammps("elastic", law, run_dir, lmp, timeout, vgrains=f"{vgrains:.12g}", eps=eps)
+    lammps("elastic", law, run_dir, lmp, timeout, vgrains=f"{vgrains:.12g}", eps=eps)
     rows = chunks(run_dir / "elastic.chunks")
     before, after = rows[rows[:, 1] == 1][-10:], rows[rows[:, 1] == 2][-10:]
     s0, s1 = before[:, 5:11].mean(axis=0), after[:, 5:11].mean(axis=0)
@@ -203,15 +204,14 @@ def elastic(law: ContactLaw, vgrains: float, run_dir: Path, lmp: str, timeout: f
     nu = lam_eff / (2 * (lam_eff + g))
     scale = law.kn / (D_REF if law.dimension == 3 else 1.0)
     return {"pwave_over_kn": m / scale, "lambda_over_kn": lam / scale, "youngs_over_kn": youngs / scale,
-            "poisson": nu, "wall_s": wall}
+            "poisson": nu}
 
 
 def shear(law: ContactLaw, vgrains: float, base: Path, inertial: float, strain: float, lmp: str,
           timeout: float) -> ShearPoint:
     run_dir = base / f"shear_I{inertial:g}"
     run_dir.mkdir(parents=True, exist_ok=True)
-    for f in ("packed.restart",):
-        shutil.copy(base / f, run_dir / f)
+    shutil.copy(base / "packed.restart", run_dir / "packed.restart")    # the deck reads it from its out
     chunk_file = run_dir / "shear.chunks"
     chunk_file.unlink(missing_ok=True)
     wall = lammps("shear", law, run_dir, lmp, timeout, vgrains=f"{vgrains:.12g}", inertial=inertial, strain=strain)
@@ -262,7 +262,7 @@ def calibrate(law: ContactLaw, out: Path, grains: int, inertial: tuple, strain: 
     (out / "prep.chunks").unlink(missing_ok=True)
     (out / "elastic.chunks").unlink(missing_ok=True)
     t0 = time.time()
-    vgrains, _ = prep(law, grains, seed, out, lmp, timeout)
+    vgrains = prep(law, grains, seed, out, lmp, timeout)
     prep_rows = chunks(out / "prep.chunks")
     cal = Calibration(law=law, grains=grains)
     cal.packing = float(vgrains / cell_volume(prep_rows[-1:], law.dimension)[0])
@@ -292,6 +292,19 @@ def calibrate(law: ContactLaw, out: Path, grains: int, inertial: tuple, strain: 
 
 
 # ----------------------------------------------------------------------------- writing
+def describe_material(name: str) -> str:
+    """One sentence naming a committed material (input_decks/materials/NAME.toml) and the constants
+    it gives the continuum, for reports that say which calibration their runs used."""
+    import tomllib
+    path = MATERIALS / f"{name}.toml"
+    material = tomllib.loads(path.read_text())
+    c = material["continuum"]
+    unit = "kn" if material["material"]["dimension"] == 2 else "kn/d"
+    return (f"the material calibrated from the grains, `{path.relative_to(REPO)}` (tools/calibrate.py: "
+            f"Drucker-Prager {c['friction_angle']:.2f} degrees, E = {c['youngs_over_kn']:.3f} {unit}, "
+            f"nu = {c['poisson']:.3f})")
+
+
 def material_toml(cal: Calibration, name: str, command: str) -> str:
     law = cal.law
     pts = "\n".join(f"#   I = {p.inertial:.4f}: mu = {p.mu:.4f}, phi = {p.packing:.4f}" for p in cal.points if p.used)

@@ -45,6 +45,7 @@ from tqdm import tqdm
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from column_collapse import (ColumnCollapse, combine_surfaces, normalised_runout, points_surface,  # noqa: E402
                              published_runout_range, surface_error)
+from calibrate import describe_material  # noqa: E402
 from dem_collapse import run as run_dem  # noqa: E402
 from mpm_results import load_run  # noqa: E402
 from lammps_log import thermo_rows  # noqa: E402
@@ -188,13 +189,8 @@ def slab_3d(aspect: float, np_: int, out: Path) -> dict:
 def continuum_note() -> str:
     """Which continuum the runs used: the hybrids the material the 2D deck names by default (calibrated
     from its grains), pure MPM its scene's own constants."""
-    import tomllib
-    path = REPO / "input_decks" / "materials" / "disks_2d.toml"
-    c = tomllib.loads(path.read_text())["continuum"]
-    return (f"Continuum of the hybrid runs: the material calibrated from the grains, `{path.relative_to(REPO)}` "
-            f"(tools/calibrate.py: Drucker-Prager {c['friction_angle']:.2f} degrees, E = {c['youngs_over_kn']:.3f} kn, "
-            f"nu = {c['poisson']:.3f}); pure MPM runs with its scene's constants (Drucker-Prager 30 degrees, mu(I) "
-            "of glass beads), which are not calibrated.")
+    return (f"Continuum of the hybrid runs: {describe_material('disks_2d')}; pure MPM runs with its scene's "
+            "constants (Drucker-Prager 30 degrees, mu(I) of glass beads), which are not calibrated.")
 
 
 def make_report(runs: list[Outcome], aspect: float, width: float, np_: int, codes: dict | None,
