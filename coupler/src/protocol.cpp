@@ -162,7 +162,8 @@ Message recv_message(MPI_Comm comm, int source, std::initializer_list<int> tags,
       if (rc != MPI_SUCCESS)
         throw PeerTimeout("receiving " + what + " from " + peer + " failed (" + mpi_error_text(rc) + ")");
       if (std::find(tags.begin(), tags.end(), m.tag) == tags.end())
-        throw PeerError("protocol error: received " + std::string(tag_name(m.tag)) + " from " + peer +
+        throw PeerError("protocol error: received " + std::string(tag_name(m.tag)) + " (tag " +
+                        std::to_string(m.tag) + ", " + std::to_string(m.data.size()) + " bytes) from " + peer +
                         " while waiting for " + what + " (are both programs from the same release?)");
       return m;
     }

@@ -8,8 +8,10 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -29,6 +31,16 @@ namespace mpm {
 
 namespace {
 
+/// Bytes per grid node the coupled continuum holds (grid mass and momentum, the DEM side's node
+/// sums, support forces and bookkeeping), generously: for the memory check of the handshake.
+constexpr double kBytesPerNode = 160.0;
+
+std::string format_count(double x) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, x >= 100 ? "%.3g" : "%.2g", x);
+  return buf;
+}
+
 /// Parameters of the DEM side this MPM side cannot work with ("" if acceptable).
 std::string check_hello(const coupler::Hello& h) {
   const std::string units = coupler::get_text(h.units);
@@ -40,11 +52,62 @@ std::string check_hello(const coupler::Hello& h) {
   if (h.model != coupler::kModelDruckerPrager && h.model != coupler::kModelMuI)
     return "unknown constitutive model id " + std::to_string(h.model);
   if (h.mpm_every < 1) return "the exchange interval must be >= 1 step";
+  if (!std::isfinite(h.cell)) return "the grid cell size must be finite (got " + std::to_string(h.cell) + ")";
+  if (!std::isfinite(h.dt)) return "the DEM time step must be finite (got " + std::to_string(h.dt) + ")";
+  if (!std::isfinite(h.time) || h.step < 0)
+    return "the DEM step and time at the connection must be finite and >= 0 (got step " + std::to_string(h.step) +
+           ", time " + std::to_string(h.time) + " s)";
+  if (!(h.reply_timeout >= 0) || !(h.idle_timeout >= 0))
+    return "the timeouts must be >= 0 s (got timeout " + std::to_string(h.reply_timeout) + ", idle " +
+           std::to_string(h.idle_timeout) + ")";
+  for (int a = 0; a < h.dimension; ++a)
+    if (!std::isfinite(h.box_lo[a]) || !std::isfinite(h.box_hi[a]) || !(h.box_hi[a] > h.box_lo[a]))
+      return "the box is empty or not finite along " + std::string(1, "xyz"[a]) + " (from " +
+             std::to_string(h.box_lo[a]) + " to " + std::to_string(h.box_hi[a]) + " m)";
   for (int a = 0; a < h.dimension; ++a)
     if (!(h.box_hi[a] - h.box_lo[a] >= 2 * h.cell))
       return "the grid cell size " + std::to_string(h.cell) + " m is more than half the box along " +
              std::string(1, "xyz"[a]) + " (" + std::to_string(h.box_hi[a] - h.box_lo[a]) +
              " m): choose a smaller 'cell' on the fix line";
+  // The grid's memory: a cell far too small for the box would otherwise end in an allocation
+  // failure or the kernel's out-of-memory killer rather than a message.
+  double nodes = 1;
+  for (int a = 0; a < h.dimension; ++a) nodes *= std::ceil((h.box_hi[a] - h.box_lo[a]) / h.cell) + 2 * coupler::kGridPad + 1;
+  const double bytes = nodes * kBytesPerNode;
+  const double physical = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * static_cast<double>(sysconf(_SC_PAGESIZE));
+  if (nodes > 2e9 || (physical > 0 && bytes > 0.5 * physical))
+    return "the grid cell size " + std::to_string(h.cell) + " m gives a grid of " + format_count(nodes) +
+           " nodes, which needs about " + format_count(bytes / 1e9) + " GB (this machine has " +
+           format_count(physical / 1e9) + " GB): choose a larger 'cell' on the fix line";
+  const coupler::ContinuumSettings& c = h.continuum;
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(c.gravity[a])) return "the gravity is not finite (component " + std::to_string(a) + ")";
+  if (!(c.cfl > 0 && c.cfl <= 1)) return "the Courant number cfl must be in (0, 1] (got " + std::to_string(c.cfl) + ")";
+  if (!(c.grain_weight > 0 && c.grain_weight < 1))
+    return "the grain weight must be between 0 and 1 (got " + std::to_string(c.grain_weight) + ")";
+  if (!(c.pic >= 0 && c.pic <= 1)) return "pic must be in [0, 1] (got " + std::to_string(c.pic) + ")";
+  if (!(c.support_gain >= 0 && c.support_gain <= 1))
+    return "the support gain must be in [0, 1] (got " + std::to_string(c.support_gain) + ")";
+  if (!(c.agreement_time >= 0) || !std::isfinite(c.agreement_time))
+    return "the agreement's relaxation time must be finite and >= 0 (got " + std::to_string(c.agreement_time) + ")";
+  if (c.points_per_axis < 1 || c.points_per_axis > 4)
+    return "points per cell and axis must be 1 to 4 (got " + std::to_string(c.points_per_axis) + ")";
+  if (c.output_every < 0) return "the output interval must be >= 0 (got " + std::to_string(c.output_every) + ")";
+  if (c.wall_contact != coupler::kWallSticky && c.wall_contact != coupler::kWallSlip &&
+      c.wall_contact != coupler::kWallFriction)
+    return "unknown wall condition id " + std::to_string(c.wall_contact);
+  if (!(c.wall_friction >= 0) || !std::isfinite(c.wall_friction))
+    return "the wall friction must be finite and >= 0 (got " + std::to_string(c.wall_friction) + ")";
+  if (c.touched_faces >= (1u << (2 * h.dimension)))
+    return "the touched container faces name a face the " + std::to_string(h.dimension) + "D box does not have";
+  for (int a = 0; a < h.dimension; ++a) {
+    const double slack = 1e-9 * (h.box_hi[a] - h.box_lo[a]);
+    if (!(c.container_lo[a] >= h.box_lo[a] - slack && c.container_hi[a] <= h.box_hi[a] + slack &&
+          c.container_hi[a] > c.container_lo[a]))
+      return "the container along " + std::string(1, "xyz"[a]) + " (" + std::to_string(c.container_lo[a]) + " to " +
+             std::to_string(c.container_hi[a]) + " m) is empty or leaves the box (" + std::to_string(h.box_lo[a]) +
+             " to " + std::to_string(h.box_hi[a]) + " m)";
+  }
   try {
     MaterialModel model(coupled_scene(h).materials.at(0));  // the material checks of pure MPM scenes
   } catch (const UserError& e) {
@@ -162,6 +225,53 @@ class TestFault {
   bool fired_ = false;
 };
 
+/// Checks every step header against the DEM clock so far ("" if acceptable): a known kind, finite
+/// times, a positive step, and no more time between two headers than their steps can hold at the
+/// largest DEM step seen (twice that, for round-off and a step changed between runs). Without it a
+/// corrupt time would have the continuum take ~forever to catch up, or NaN it.
+class HeaderClock {
+ public:
+  explicit HeaderClock(const coupler::Hello& hello) : step_(hello.step), time_(hello.time), max_dt_(hello.dt) {}
+  std::string check(const coupler::StepHeader& h) {
+    const std::string at = "the step header of step " + std::to_string(h.step);
+    if (h.kind < coupler::kStepCouple || h.kind > coupler::kStepLoad)
+      return at + " has an unknown kind " + std::to_string(h.kind) + " (0 to 3 are defined)";
+    if (!std::isfinite(h.time) || !std::isfinite(h.dt) || !(h.dt > 0) || !std::isfinite(h.next_time))
+      return at + " holds a non-finite or non-positive time or time step (time " + std::to_string(h.time) +
+             " s, dt " + std::to_string(h.dt) + " s, next exchange " + std::to_string(h.next_time) + " s)";
+    if (h.output != 0 && h.output != 1) return at + " has an output flag " + std::to_string(h.output) + " (0 or 1)";
+    if (h.kind == coupler::kStepRezone && (h.zone_source < coupler::kZonesOracle || h.zone_source > coupler::kZonesGiven))
+      return at + " has an unknown zone source " + std::to_string(h.zone_source);
+    if (h.kind == coupler::kStepLoad) {  // a loaded state sets its own clock
+      accept(h);
+      return "";
+    }
+    max_dt_ = std::max(max_dt_, h.dt);
+    const double steps = static_cast<double>(h.step - step_);
+    const double slack = 1e-9 * std::max(1.0, std::abs(h.time));
+    if (h.time - time_ > 2.0 * std::max(steps, 0.0) * max_dt_ + slack)
+      return at + " is at t = " + std::to_string(h.time) + " s, but the last one (step " + std::to_string(step_) +
+             ", t = " + std::to_string(time_) + " s) is only " + std::to_string(steps) + " step(s) of at most " +
+             std::to_string(max_dt_) + " s before it";
+    if (h.next_time > h.time && h.next_time - h.time > 2.0 * kMaxStepsAhead * max_dt_)
+      return at + " announces the next exchange at t = " + std::to_string(h.next_time) + " s, more than " +
+             std::to_string(kMaxStepsAhead) + " steps ahead";
+    accept(h);
+    return "";
+  }
+
+ private:
+  static constexpr double kMaxStepsAhead = 1e9;
+  void accept(const coupler::StepHeader& h) {
+    step_ = h.step;
+    time_ = h.time;
+    max_dt_ = std::max(max_dt_, h.dt);
+  }
+  std::int64_t step_;
+  double time_;
+  double max_dt_;
+};
+
 /// Error text for the DEM ranks, sent in place of the exchange's answers.
 coupler::StepAck error_ack(std::int64_t step, const std::string& what) {
   coupler::StepAck ack;
@@ -214,7 +324,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   } catch (const coupler::PeerError&) {
     throw;
   } catch (...) {
-    return fail(std::string("the rezone failed") + at + ": " + describe_exception(std::current_exception()));
+    return fail("the rezone at step " + std::to_string(h.step) + " failed: " + describe_exception(std::current_exception()));
   }
   for (int r = 0; r < link.remote_size(); ++r) {
     link.send_array(r, coupler::kTagZones, continuum->zones(), "the new zone map" + at);
@@ -227,19 +337,21 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   } catch (const coupler::PeerError&) {
     throw;
   } catch (...) {
-    return fail(std::string("the rezone failed") + at + ": " + describe_exception(std::current_exception()));
+    return fail("the rezone at step " + std::to_string(h.step) + " failed: " + describe_exception(std::current_exception()));
   }
   for (int r = 0; r < link.remote_size(); ++r)
     link.send_array(r, coupler::kTagCorrections, corrections, "the grain corrections" + at);
   const auto support = link.receive(0, {coupler::kTagSupport}, "the grains' support force" + at).as_array<double>();
   if (support.size() != 3) return fail("protocol error: the grains' support force has " +
                                        std::to_string(support.size()) + " components");
+  if (!std::isfinite(support[0]) || !std::isfinite(support[1]) || !std::isfinite(support[2]))
+    return fail("the grains' support force" + at + " is not finite: a coupled grain's state is NaN or inf");
   coupler::StepAck ack;
   try {
     continuum->balance_support(Eigen::Map<const Eigen::Vector3d>(support.data()).head<D>());
     ack = continuum->totals(h.step);
   } catch (...) {
-    return fail(std::string("the rezone failed") + at + ": " + describe_exception(std::current_exception()));
+    return fail("the rezone at step " + std::to_string(h.step) + " failed: " + describe_exception(std::current_exception()));
   }
   say(opt, "step " + std::to_string(h.step) + ": rezone moved the material of " + std::to_string(ack.moved_cells) +
                " cells (" + std::to_string(ack.points_made) + " points made, " + std::to_string(ack.points_removed) +
@@ -265,6 +377,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
     deferred_error = "the MPM process could not set up the continuum: " + describe_exception(std::current_exception());
   }
   const double idle = hello.idle_timeout;
+  HeaderClock clock(hello);
   long steps = 0;
   for (;;) {
     const coupler::Message m = link.receive(
@@ -276,6 +389,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
       const auto h = m.as<coupler::StepHeader>();
       step = h.step;
       const std::string at = " at step " + std::to_string(h.step);
+      if (const std::string bad = clock.check(h); !bad.empty()) throw coupler::PeerError("protocol error: " + bad);
       if (h.kind == coupler::kStepCouple) fault.check("unknown", h.step);
       if (h.kind == coupler::kStepRezone) {
         if (rezone<D>(link, built.get(), h, deferred_error, opt) != 0) return 2;
@@ -367,6 +481,18 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
   }
 }
 
+/// Sends an error acknowledgement to every DEM rank, whatever it waits for (in an exchange
+/// LAMMPS takes a StepAck as the MPM process's error), and marks the link aborted.
+void report_to_all(coupler::Link& link, const coupler::StepAck& ack) {
+  for (int r = 0; r < link.remote_size(); ++r) {
+    try {  // small enough to go out at once; bounded anyway
+      coupler::send_msg(link.comm(), r, coupler::kTagStepAck, ack, 5.0, "the error report to LAMMPS");
+    } catch (const coupler::PeerError&) {
+    }
+  }
+  link.mark(coupler::Link::State::kAborted);
+}
+
 /// serve_loop with a last line of defence: a failure its own handlers did not catch is printed
 /// and sent to every DEM rank as an error acknowledgement (whatever LAMMPS waits for in an
 /// exchange, it takes a StepAck as the MPM process's error), so LAMMPS stops at once naming it.
@@ -375,20 +501,21 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
   std::int64_t step = -1;
   try {
     return serve_loop<D>(link, hello, opt, ended, step);
-  } catch (const coupler::PeerError&) {
+  } catch (const coupler::PeerTimeout&) {
     throw;  // the connection itself failed: run_coupled decides (abort or end)
+  } catch (const coupler::PeerEnded&) {
+    throw;
+  } catch (const coupler::PeerError& e) {
+    // A malformed, out-of-order or inconsistent message: LAMMPS is still there and waits for an
+    // answer, so it gets the error now instead of finding out after its reply timeout.
+    error_line(e.what());
+    report_to_all(link, error_ack(step, e.what()));
+    return 2;
   } catch (...) {
     const std::string what = "the MPM process failed" + (step >= 0 ? " at step " + std::to_string(step) : "") +
                              ": " + describe_exception(std::current_exception());
     error_line(what);
-    const coupler::StepAck ack = error_ack(step, what);
-    for (int r = 0; r < link.remote_size(); ++r) {
-      try {  // small enough to go out at once; bounded anyway
-        coupler::send_msg(link.comm(), r, coupler::kTagStepAck, ack, 5.0, "the error report to LAMMPS");
-      } catch (const coupler::PeerError&) {
-      }
-    }
-    link.mark(coupler::Link::State::kAborted);
+    report_to_all(link, error_ack(step, what));
     return 2;
   }
 }

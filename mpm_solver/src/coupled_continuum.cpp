@@ -111,6 +111,10 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     for (const auto& r : list) {
       if (r.cell >= n)
         throw UserError("a DEM rank sent the grain volume of cell " + std::to_string(r.cell) + " outside the grid");
+      if (!std::isfinite(r.volume) || !std::isfinite(r.mass) || r.volume < 0 || r.mass < 0)
+        throw UserError("a DEM rank sent a non-finite or negative grain volume or mass for cell " +
+                        std::to_string(r.cell) + " (volume " + std::to_string(r.volume) + ", mass " +
+                        std::to_string(r.mass) + "): a grain's size, mass or position is not finite");
       volume[r.cell] += r.volume;
       grain_mass[r.cell] += r.mass;
     }
@@ -127,6 +131,10 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   if (zone_source == coupler::kZonesGiven) {
     if (given.size() != n)
       throw UserError("the zone map has " + std::to_string(given.size()) + " cells, the grid " + std::to_string(n));
+    for (std::size_t c = 0; c < n; ++c)
+      if (given[c] != coupler::kDiscrete && given[c] != coupler::kHybrid && given[c] != coupler::kContinuum)
+        throw UserError("the zone map gives cell " + std::to_string(c) + " the unknown zone " +
+                        std::to_string(static_cast<int>(given[c])) + " (0 discrete, 1 hybrid, 2 continuum)");
     next = given;
   } else {
     std::vector<double> shear;
@@ -491,12 +499,24 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
     const std::vector<std::vector<coupler::NodeRecord>>& per_rank) {
   Grid<D>& grid = solver_.grid();
   const std::size_t n_nodes = grid.num_nodes();
-  // DEM mass and momentum of every node over all ranks.
-  for (const auto& list : per_rank)
-    for (const auto& r : list) {
+  // Every record is checked before any is added: a bad one leaves the node sums untouched.
+  for (std::size_t rank = 0; rank < per_rank.size(); ++rank)
+    for (const auto& r : per_rank[rank]) {
       if (r.node >= n_nodes)
         throw UserError("a DEM rank sent node " + std::to_string(r.node) + " outside the grid of " +
                         std::to_string(n_nodes) + " nodes");
+      bool finite = std::isfinite(r.mass);
+      for (int a = 0; a < 3; ++a) finite = finite && std::isfinite(r.momentum[a]);
+      if (!finite || r.mass < 0)
+        throw UserError("LAMMPS rank " + std::to_string(rank) + " sent a " + (finite ? "negative" : "non-finite (NaN or inf)") +
+                        " mass or momentum for node " + std::to_string(r.node) + " (mass " + std::to_string(r.mass) +
+                        " kg, momentum " + std::to_string(r.momentum[0]) + ", " + std::to_string(r.momentum[1]) + ", " +
+                        std::to_string(r.momentum[2]) + "): a coupled grain's mass, position or velocity is not "
+                        "finite - the DEM run went unstable (check the time step) or its input set a NaN");
+    }
+  // DEM mass and momentum of every node over all ranks.
+  for (const auto& list : per_rank)
+    for (const auto& r : list) {
       if (touched_slot_[r.node] < 0) {
         touched_slot_[r.node] = static_cast<std::int64_t>(touched_.size());
         touched_.push_back(r.node);
