@@ -803,6 +803,23 @@ void FixHybridMPM::compute_zones()
   if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
   if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, cell));
   else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, cell));
+  // A continuum region that holds no cell centre of the box converts nothing: a region smaller
+  // than a cell, or outside the box, is a mistake, not an empty continuum.
+  for (std::size_t k = 0; k < regions.size(); ++k) {
+    double centre[3] = {0, 0, 0};
+    bool any = false;
+    for (std::size_t c = 0; c < zones.size() && !any; ++c) {
+      cell_centre(c, centre);
+      bool in_box = true;
+      for (int d = 0; d < domain->dimension; d++)
+        in_box = in_box && centre[d] >= domain->boxlo[d] && centre[d] <= domain->boxhi[d];
+      any = in_box && regions[k]->match(centre[0], centre[1], domain->dimension == 3 ? centre[2] : 0.0);
+    }
+    if (!any)
+      error->all(FLERR, fmt::format("Fix hybrid/mpm: continuum region '{}' contains no grid cell centre of the box "
+                                    "(cell {}): make the region span at least one cell, or the cell smaller",
+                                    region_ids[k], cell));
+  }
   if (comm->me == 0 && !region_ids.empty()) {
     // cells of the box only (the padding cells around it are continuum by convention)
     bigint n[3] = {0, 0, 0};
@@ -1238,6 +1255,7 @@ void FixHybridMPM::sum_over_ranks(std::vector<coupler::BodySums<D>> &sums)
 template <int D>
 void FixHybridMPM::rezone(int source)
 {
+  check_finite_grains("before the rezone");
   const auto &grid = transfer<D>().grid();
   const std::string at = " of the rezone at step " + std::to_string(update->ntimestep);
   // as fix pour: atoms are created and deleted now, the ghosts are rebuilt after
@@ -1490,9 +1508,38 @@ void FixHybridMPM::end_of_step()
    go to the MPM process, the agreed node velocities come back
 ------------------------------------------------------------------------- */
 
+/* ----------------------------------------------------------------------
+   every grain of the group must have a finite position, velocity and mass
+   before it is mapped to grid cells and nodes (a NaN there indexed the grid
+   out of range); collective, an error naming the first bad atom
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::check_finite_grains(const std::string &when)
+{
+  double **x = atom->x, **v = atom->v;
+  const double *rmass = atom->rmass;
+  const int *mask = atom->mask;
+  const tagint *tag = atom->tag;
+  tagint bad = 0;
+  for (int i = 0; i < atom->nlocal && bad == 0; i++) {
+    if (!(mask[i] & groupbit)) continue;
+    bool ok = std::isfinite(rmass[i]);
+    for (int a = 0; a < 3; a++) ok = ok && std::isfinite(x[i][a]) && std::isfinite(v[i][a]);
+    if (!ok) bad = tag[i];
+  }
+  tagint first = 0;
+  MPI_Allreduce(&bad, &first, 1, MPI_LMP_TAGINT, MPI_MAX, world);
+  if (first != 0)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: atom {} has a non-finite (NaN or inf) position, velocity or "
+                                  "mass at step {} ({}): the DEM run went unstable (check the time step) or the "
+                                  "input set a NaN",
+                                  first, update->ntimestep, when));
+}
+
 template <int D>
 void FixHybridMPM::exchange(bool force_output)
 {
+  check_finite_grains("before the exchange");
   double **x = atom->x, **v = atom->v;
   double *rmass = atom->rmass;
   int *mask = atom->mask;

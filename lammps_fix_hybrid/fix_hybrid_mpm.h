@@ -180,6 +180,7 @@ class FixHybridMPM : public Fix {
   void check_dem_timestep(const std::string &when);
   void store_atom_stress();
   template <int D> void exchange(bool force_output);
+  void check_finite_grains(const std::string &when);
   template <int D> coupler::GrainTransfer<D> &transfer();
   template <int D>
   void apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
