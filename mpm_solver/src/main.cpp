@@ -1,5 +1,6 @@
 // mpm_solver: runs a pure-MPM scene from a TOML scene file, or (--coupled) serves as the
 // continuum side of a coupled run with LAMMPS (mpm/coupled.hpp).
+#include <hdf5.h>
 #include <mpi.h>
 #include <omp.h>
 #include <sys/resource.h>
@@ -72,6 +73,14 @@ int run_scene(const mpm::Scene& scene, const Options& opt) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Every HDF5 file is closed by its owner (RAII) before main returns, so HDF5's own clean-up has
+  // nothing to do - except after a failed write (a full disk): such a file cannot be closed, and
+  // HDF5's clean-up of it crashed the process (segfault in H5F__close_cb) after the error had been
+  // reported. HDF5 runs that clean-up at exit and, if MPI is up when the library starts, in
+  // MPI_Finalize (an MPI_COMM_SELF attribute): so no atexit handler, and the library is started
+  // here, before --coupled initialises MPI. The files use HDF5's default (POSIX) driver, not MPI-IO.
+  H5dont_atexit();
+  H5open();
   CLI::App app{"mpm_solver: explicit material point method for dry granular continua (2D and 3D)"};
   Options opt;
   app.add_option("scene", opt.scene_path, "scene file (TOML); keys are listed below (not with --coupled)")

@@ -213,6 +213,10 @@ struct SnapshotWriter<D>::Impl {
   h5::File file;
   h5::Group frames;
   int frames_written = 0;
+  /// A frame failed to write (a full disk): the file is then not closed. Its flush would fail
+  /// again, and a failed H5Fclose leaves HDF5 a half-freed file (which its clean-up crashed on;
+  /// main.cpp keeps that clean-up from running). What was flushed before stays readable.
+  bool failed = false;
   h5::Group xdmf_group;  ///< /xdmf: datasets only the XDMF sidecars need
   std::vector<hsize_t> vertex_id_sizes;  ///< point counts N with a /xdmf/vertex_ids_N dataset
   std::vector<std::string> point_frames_xml;  ///< one <Grid> per frame, cached
@@ -222,6 +226,12 @@ struct SnapshotWriter<D>::Impl {
   IVec<D> grid_dims = IVec<D>::Zero();
   Vec<D> grid_origin = Vec<D>::Zero();
   double grid_dx = 0;
+
+  ~Impl() {
+    if (failed) file.release();
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
 
   Impl(const std::string& dir, const Scene& scene)
       : directory(dir.empty() ? fs::path(".") : fs::path(dir)),
@@ -304,6 +314,7 @@ struct SnapshotWriter<D>::Impl {
         H5Ldelete(file.get(), "grid_coordinates", H5P_DEFAULT);
       }
       H5Eclear2(H5E_DEFAULT);
+      failed = true;
       throw;
     }
     point_frames_xml.push_back(points_xml(name, pts.size(), time, coupling != nullptr));
