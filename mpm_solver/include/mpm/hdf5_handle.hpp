@@ -85,6 +85,16 @@ inline std::string error_stack_message() {
   H5Eclear2(H5E_DEFAULT);
   for (char& c : text)
     if (c == '\n' || c == '\r') c = ' ';
+  // A failed system call is described at length ("file write failed: time = ..., filename = ...,
+  // file descriptor = 17, errno = 28, error message = 'No space left on device', buf = ...");
+  // keep what failed and the system's reason, which messages cut to a fixed length would lose.
+  const std::string key = "error message = '";
+  if (const auto at = text.find(key); at != std::string::npos) {
+    const auto end = text.find('\'', at + key.size());
+    const auto colon = text.find(':');
+    if (end != std::string::npos && colon != std::string::npos && colon < at)
+      text = text.substr(0, colon) + ": " + text.substr(at + key.size(), end - at - key.size());
+  }
   return text;
 }
 
