@@ -72,7 +72,8 @@ std::string check_hello(const coupler::Hello& h) {
   // The grid's memory: a cell far too small for the box would otherwise end in an allocation
   // failure or the kernel's out-of-memory killer rather than a message.
   double nodes = 1;
-  for (int a = 0; a < h.dimension; ++a) nodes *= std::ceil((h.box_hi[a] - h.box_lo[a]) / h.cell) + 2 * coupler::kGridPad + 1;
+  for (int a = 0; a < h.dimension; ++a)
+    nodes *= std::ceil((h.box_hi[a] - h.box_lo[a]) / h.cell) + 2 * coupler::kGridPad + 1;
   const double bytes = nodes * kBytesPerNode;
   const double physical = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * static_cast<double>(sysconf(_SC_PAGESIZE));
   if (nodes > 2e9 || (physical > 0 && bytes > 0.5 * physical))
@@ -240,7 +241,8 @@ class HeaderClock {
       return at + " holds a non-finite or non-positive time or time step (time " + std::to_string(h.time) +
              " s, dt " + std::to_string(h.dt) + " s, next exchange " + std::to_string(h.next_time) + " s)";
     if (h.output != 0 && h.output != 1) return at + " has an output flag " + std::to_string(h.output) + " (0 or 1)";
-    if (h.kind == coupler::kStepRezone && (h.zone_source < coupler::kZonesOracle || h.zone_source > coupler::kZonesGiven))
+    if (h.kind == coupler::kStepRezone &&
+        (h.zone_source < coupler::kZonesOracle || h.zone_source > coupler::kZonesGiven))
       return at + " has an unknown zone source " + std::to_string(h.zone_source);
     if (h.kind == coupler::kStepLoad) {  // a loaded state sets its own clock
       accept(h);
@@ -311,6 +313,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   }
   const auto volumes =
       receive_from_all<coupler::CellGrains>(link, coupler::kTagVolumes, "the grain volumes" + at);
+  const std::string failed = "the rezone at step " + std::to_string(h.step) + " failed: ";
   auto fail = [&](const std::string& what) {
     const coupler::StepAck ack = error_ack(h.step, what);
     ack_all(link, ack, "the rezone's error" + at);
@@ -324,7 +327,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   } catch (const coupler::PeerError&) {
     throw;
   } catch (...) {
-    return fail("the rezone at step " + std::to_string(h.step) + " failed: " + describe_exception(std::current_exception()));
+    return fail(failed + describe_exception(std::current_exception()));
   }
   for (int r = 0; r < link.remote_size(); ++r) {
     link.send_array(r, coupler::kTagZones, continuum->zones(), "the new zone map" + at);
@@ -337,7 +340,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   } catch (const coupler::PeerError&) {
     throw;
   } catch (...) {
-    return fail("the rezone at step " + std::to_string(h.step) + " failed: " + describe_exception(std::current_exception()));
+    return fail(failed + describe_exception(std::current_exception()));
   }
   for (int r = 0; r < link.remote_size(); ++r)
     link.send_array(r, coupler::kTagCorrections, corrections, "the grain corrections" + at);
@@ -351,7 +354,7 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
     continuum->balance_support(Eigen::Map<const Eigen::Vector3d>(support.data()).head<D>());
     ack = continuum->totals(h.step);
   } catch (...) {
-    return fail("the rezone at step " + std::to_string(h.step) + " failed: " + describe_exception(std::current_exception()));
+    return fail(failed + describe_exception(std::current_exception()));
   }
   say(opt, "step " + std::to_string(h.step) + ": rezone moved the material of " + std::to_string(ack.moved_cells) +
                " cells (" + std::to_string(ack.points_made) + " points made, " + std::to_string(ack.points_removed) +

@@ -508,8 +508,9 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       bool finite = std::isfinite(r.mass);
       for (int a = 0; a < 3; ++a) finite = finite && std::isfinite(r.momentum[a]);
       if (!finite || r.mass < 0)
-        throw UserError("LAMMPS rank " + std::to_string(rank) + " sent a " + (finite ? "negative" : "non-finite (NaN or inf)") +
-                        " mass or momentum for node " + std::to_string(r.node) + " (mass " + std::to_string(r.mass) +
+        throw UserError("LAMMPS rank " + std::to_string(rank) + " sent a " +
+                        (finite ? "negative" : "non-finite (NaN or inf)") + " mass or momentum for node " +
+                        std::to_string(r.node) + " (mass " + std::to_string(r.mass) +
                         " kg, momentum " + std::to_string(r.momentum[0]) + ", " + std::to_string(r.momentum[1]) + ", " +
                         std::to_string(r.momentum[2]) + "): a coupled grain's mass, position or velocity is not "
                         "finite - the DEM run went unstable (check the time step) or its input set a NaN");
