@@ -17,37 +17,20 @@ dem_collapse.surface_profile (max y + r per x bin of 2 d) over the connected dep
 """
 from __future__ import annotations
 
-import argparse
 import math
-import re
-import shutil
-import subprocess
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from column_collapse import published_runout_range  # noqa: E402
-from sphere_data import write_spheres  # noqa: E402
-from dem_collapse import (connected_deposit, deck_vars, max_overlap, print_result, read_dump,  # noqa: E402
-                          surface_profile)
+from column_collapse import published_runout_range
+from hgtools import cli, logs
+from hgtools.grains import (FLOOR_SPACING, LATTICE_JITTER, LATTICE_SPACING, connected_deposit, grains_needed, jittered,
+                            max_overlap, pour_margin, read_dump, slab_floor, surface_profile, write_spheres)
+from hgtools.runner import CODES, Forms
 
-REPO = Path(__file__).resolve().parent.parent
-DECKS = {
-    "lammps": REPO / "input_decks" / "column_collapse" / "dem_3d.lmp",
-    "liggghts": REPO / "input_decks" / "column_collapse" / "liggghts_3d.in",
-    "hybrid": REPO / "input_decks" / "column_collapse" / "dem_3d.lmp",   # + hybrid_3d.lmp, lmp_hybrid
-}
-HYBRID_DECK = REPO / "input_decks" / "column_collapse" / "hybrid_3d.lmp"
-EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts", "hybrid": "lmp"}
-
-FLOOR_SPACING = 1.2      # floor sphere spacing in x and z, in d (a 0.9 d grain cannot pass)
-LATTICE_SPACING = 1.16   # loose pouring lattice spacing (x, y), in d (> dmax + 2 * jitter)
-LATTICE_JITTER = 0.025   # random offset of the lattice sites, +- in d, per axis
-PHI_EST = 0.60           # packing fraction assumed to size the pour (trimmed 8 % extra)
+FORMS = Forms("column_collapse")
 
 
 def runout_upper(aspect: float) -> float:
@@ -70,11 +53,10 @@ def pour_lattice(length: float, W: float, d: float, volume: float) -> tuple:
     if sz < 1.1 * d + 2 * LATTICE_JITTER * d:
         nz -= 1
         sz = W / nz
-    margin = 0.55 * 1.1 * d + LATTICE_JITTER * d
+    margin = pour_margin(d)
     xs = np.arange(margin, length - margin + 1e-12, s)
     zs = (np.arange(nz) + 0.5) * sz
-    vmean = math.pi / 6 * d ** 3 * 1.01          # <D^3> for D uniform in [0.9, 1.1] d
-    return xs, zs, margin, int(math.ceil(1.08 * PHI_EST * volume / vmean))
+    return xs, zs, margin, grains_needed(volume, d)
 
 
 def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: int,
@@ -89,23 +71,12 @@ def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: i
     H0 = aspect * width
     W = thickness_d * FLOOR_SPACING * d         # slab thickness: a whole number of floor rows
     length = domain_length(aspect, width, d)
-    # floor
-    fs = FLOOR_SPACING * d
-    fx = np.arange(0.5 * fs - 2 * d, length + 2 * d, fs)
-    fz = (np.arange(thickness_d) + 0.5) * fs
-    FX, FZ = np.meshgrid(fx, fz, indexing="ij")
-    floor = np.column_stack([FX.ravel(), np.full(FX.size, -0.5 * d), FZ.ravel()])
-    # grains
-    s = LATTICE_SPACING * d
+    floor = slab_floor(length + 2 * d, thickness_d, d)
     xs, zs, margin, need = pour_lattice(width, W, d, width * H0 * W)
-    per_layer = len(xs) * len(zs)
-    layers = int(math.ceil(need / per_layer))
-    ys = 0.6 * d + np.arange(layers) * s
+    ys = 0.6 * d + np.arange(int(math.ceil(need / (len(xs) * len(zs))))) * LATTICE_SPACING * d
     X, Y, Z = np.meshgrid(xs, ys, zs, indexing="ij")
-    grains = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
-    grains += rng.uniform(-LATTICE_JITTER * d, LATTICE_JITTER * d, grains.shape)
+    grains, diam = jittered(rng, np.column_stack([X.ravel(), Y.ravel(), Z.ravel()]), d)
     grains[:, 2] %= W
-    diam = rng.uniform(0.9 * d, 1.1 * d, len(grains))
     ytop = ys[-1] + 4 * d
     write_spheres(path, "Quasi-3D column collapse grains (tools/dem3d_collapse.py)",
                   ((-2 * d, length + 2 * d), (-1.5 * d, ytop), (0.0, W)),
@@ -187,13 +158,6 @@ class Dem3dResult:
                 f"  max overlap/d settled {self.max_overlap_initial:.4f}, final {self.max_overlap_final:.4f}")
 
 
-def _num(pattern: str, text: str) -> float:
-    m = re.search(pattern, text, re.M)
-    if not m:
-        raise RuntimeError(f"pattern {pattern!r} not in the log")
-    return float(m.group(1))
-
-
 def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float = 0.002,
         thickness_d: int = 4, np_: int = 1, out: str | Path | None = None, seed: int = 2024,
         timeout: float = 600, extra_vars: dict | None = None, exe: str | None = None) -> Dem3dResult:
@@ -201,10 +165,6 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     thickness_d: slab thickness W in floor rows (W = thickness_d * 1.2 d).
     code "hybrid": dem_3d.lmp with its hybrid twin (hybrid_3d.lmp, side walls: walls 1) through
     tools/hybrid_launch.py; the result holds the grains, the points are in <out>/frames."""
-    deck = DECKS[code]
-    exe = exe or shutil.which(EXECUTABLES[code])
-    if exe is None:
-        raise FileNotFoundError(f"{EXECUTABLES[code]} not on PATH")
     # absolute: the codes run in it (cwd), and the paths they are given must hold there too
     out = (Path(out) if out else Path.cwd() / f"dem3d_{code}").resolve()
     out.mkdir(parents=True, exist_ok=True)
@@ -213,33 +173,12 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     geo = write_data(out / "grains.data", aspect, width, d, thickness_d, seed)
     variables = dict(data=out / "grains.data", out=out, aspect=aspect, width=width, d=d,
                      length=f"{geo['length']:.9g}", **(extra_vars or {}))
-    if code == "hybrid":
-        variables.update(walls=1, hybrid=1, hdeck=HYBRID_DECK)
-        variables.update(extra_vars or {})
-        cmd = [sys.executable, str(REPO / "tools" / "hybrid_launch.py"), "-np", str(np_), str(deck)]
-    else:
-        cmd = [exe, "-in", str(deck)]
-    cmd += ["-log", str(out / "log.txt"), "-screen", "none"]
-    if code == "liggghts":
-        cmd.append("-nocite")
-    for k, v in variables.items():
-        cmd += ["-var", k, str(v)]
-    if np_ > 1 and code != "hybrid":
-        cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
-    t0 = time.time()
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=out)
-    wall = time.time() - t0
-    log = (out / "log.txt").read_text(errors="replace") if (out / "log.txt").exists() else ""
-    if proc.returncode != 0 or not (out / "final.dump").exists():
-        tail = "\n".join(log.splitlines()[-30:])
-        raise RuntimeError(f"{code} failed ({proc.returncode}): {' '.join(cmd)}\n{proc.stdout[-2000:]}\n"
-                           f"{proc.stderr[-2000:]}\n{tail}")
+    done = FORMS.run(code, variables, out / "log.txt", {"walls": 1, **(extra_vars or {})}, np_=np_, exe=exe,
+                     timeout=timeout)
+    log = done.check("in the collapse", out / "final.dump")
     walls = code == "hybrid" or int(variables.get("walls", 0)) == 1
     res = analyse3(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d,
                    None if walls else geo["thickness"])
-    params = {k: _num(rf"^DEM3D contact:.*\b{re.escape(k)} = (\S+)", log)
-              for k in ("kn", "kt", "gamma_n", "gamma_t", "gamma_n(wall)", "gamma_t(wall)")}
-    params["dt"] = _num(r"^DEM3D timestep:.*dt = (\S+) s", log)
     if code == "hybrid":    # the continuum's surface too (its points are in the frames)
         from column_collapse import combine_surfaces, points_surface
         from mpm_results import load_run
@@ -250,35 +189,29 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
         res["profile"] = [(float(a), float(b)) for a, b in zip(x, h)]
         near_wall = points[:, 0] < 2 * d
         res["final_height"] = max(res["final_height"], float(np.max(points[near_wall, 1], initial=0.0)))
-    lines = "\n".join(ln for ln in log.splitlines() if ln.startswith("DEM3D "))
     # the collapse stage: the loop times after the gate opens (pour and settle are the same work
     # in every code and form, and the hybrid couples only the collapse)
-    stage = log[log.rfind("unfix           gate"):]
-    loops = re.findall(r"^Loop time of (\S+) on \d+ procs for (\d+) steps", stage, re.M)
+    steps, seconds = logs.loops(log, after="unfix           gate")
+    end = r"^DEM3D collapse end:.*"
     return Dem3dResult(
-        code=code, aspect=aspect, width=width, d=d, thickness=geo["thickness"], wall_time=wall,
-        collapse_wall=sum(float(t) for t, _ in loops), collapse_steps=sum(int(n) for _, n in loops),
-        ke_per_grain=_num(r"^DEM3D collapse end:.*KE/grain = (\S+) J", log),
-        ke_rest=_num(r"^DEM3D collapse end:.*rest threshold (\S+) J", log),
-        collapse_time=_num(r"^DEM3D collapse end:.*collapse time = (\S+) s", log),
-        params=params, published=published_runout_range(aspect), log=lines, **res)
+        code=code, aspect=aspect, width=width, d=d, thickness=geo["thickness"], wall_time=done.wall,
+        collapse_wall=seconds, collapse_steps=steps,
+        ke_per_grain=logs.number(end + r"KE/grain = (\S+) J", log),
+        ke_rest=logs.number(end + r"rest threshold (\S+) J", log),
+        collapse_time=logs.number(end + r"collapse time = (\S+) s", log),
+        params=logs.contact_params(log, "DEM3D"), published=published_runout_range(aspect),
+        log=logs.lines(log, "DEM3D "), **res)
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--code", choices=sorted(DECKS), default="lammps")
+    p = cli.scene_parser(__doc__, seed=2024, codes=CODES)
     p.add_argument("--aspect", type=float, default=2.0)
     p.add_argument("--width", type=float, default=0.03, help="L0, m")
     p.add_argument("--d", type=float, default=0.002)
     p.add_argument("--thickness", type=int, default=4, help="slab thickness in floor rows (1.2 d each)")
-    p.add_argument("--np", type=int, default=1, dest="np_")
-    p.add_argument("--out", default=None)
-    p.add_argument("--seed", type=int, default=2024)
-    p.add_argument("--var", action="append", default=[], metavar="NAME=VALUE")
-    p.add_argument("--json", action="store_true")
-    a = p.parse_args(argv)
-    res = run(a.code, a.aspect, a.width, a.d, a.thickness, a.np_, a.out, a.seed, extra_vars=deck_vars(p, a.var))
-    print_result(res, a.json)
+    a = cli.parse(p, argv)
+    res = run(a.code, a.aspect, a.width, a.d, a.thickness, a.np_, a.out, a.seed, extra_vars=a.var)
+    cli.print_result(res, a.json)
     return 0
 
 
