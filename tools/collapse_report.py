@@ -42,13 +42,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from column_collapse import (ColumnCollapse, combine_surfaces, normalised_runout, points_surface,  # noqa: E402
+from column_collapse import (ColumnCollapse, combine_surfaces, normalised_runout, points_surface,
                              published_runout_range, surface_error)
-from calibrate import describe_material  # noqa: E402
-from dem_collapse import run as run_dem, run_from_settled  # noqa: E402
-from mpm_results import load_run  # noqa: E402
-from lammps_log import thermo_rows  # noqa: E402
+from calibrate import describe_material
+from dem_collapse import run as run_dem, run_from_settled
+from hgtools.logs import thermo_rows
+from mpm_results import load_run
 
 REPO = Path(__file__).resolve().parent.parent
 SOLVER = REPO / "build" / "mpm_solver" / "mpm_solver"
