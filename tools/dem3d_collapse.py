@@ -26,8 +26,9 @@ import numpy as np
 
 from column_collapse import published_runout_range
 from hgtools import cli, logs
-from hgtools.grains import (FLOOR_SPACING, LATTICE_JITTER, LATTICE_SPACING, connected_deposit, grains_needed, jittered,
-                            max_overlap, pour_margin, read_dump, slab_floor, surface_profile, write_spheres)
+from hgtools.collapse import Deposit, measure
+from hgtools.grains import (FLOOR_SPACING, LATTICE_JITTER, LATTICE_SPACING, grains_needed, jittered, pour_margin,
+                            read_dump, slab_floor, write_spheres)
 from hgtools.runner import CODES, Forms
 
 FORMS = Forms("column_collapse")
@@ -84,66 +85,14 @@ def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: i
     return dict(thickness=W, length=length, poured=len(grains), floor=len(floor), ytop=ytop)
 
 
-def analyse3(final: dict, initial: dict, width: float, d: float, period_z: float | None) -> dict:
-    """period_z: the slab's period, or None between side walls."""
-    g = final["type"] == 1
-    pos = np.column_stack([final["x"][g], final["y"][g], final["z"][g]])
-    r = final["radius"][g]
-    mask = connected_deposit(pos, r, d, period_z)
-    edge = pos[:, 0] + r
-    front = float(edge[mask].max())
-    gi = initial["type"] == 1
-    speed = np.sqrt(final["vx"][g] ** 2 + final["vy"][g] ** 2 + final["vz"][g] ** 2)
-    return dict(
-        grains=int(g.sum()),
-        runout=(front - width) / width,
-        runout_p995=(float(np.percentile(edge, 99.5)) - width) / width,
-        runout_max=(float(edge.max()) - width) / width,
-        front=front,
-        height=float((initial["y"][gi] + initial["radius"][gi]).max()),
-        final_height=float(np.max((pos[:, 1] + r)[pos[:, 0] < 2 * d], initial=0.0)),  # 0: continuum there
-        max_speed=float(speed.max()),
-        max_speed_deposit=float(speed[mask].max()),
-        max_overlap_initial=max_overlap(initial, d, period_z),
-        max_overlap_final=max_overlap(final, d, period_z),
-        detached=int((~mask).sum()),
-        profile=surface_profile(pos[mask, 0], pos[mask, 1], r[mask], 2 * d, front),
-    )
-
-
-@dataclass
-class Dem3dResult:
+@dataclass(kw_only=True)
+class Dem3dResult(Deposit):
     code: str
-    aspect: float
-    width: float
-    d: float
     thickness: float
-    grains: int
-    runout: float
-    runout_p995: float
-    runout_max: float
-    front: float
-    height: float
-    final_height: float
-    max_speed: float
-    max_speed_deposit: float
-    max_overlap_initial: float
-    max_overlap_final: float
-    detached: int
-    ke_per_grain: float
-    ke_rest: float
     collapse_time: float          # simulated time from the gate removal to rest, s
-    wall_time: float              # s, the whole run (pour, settle, collapse)
     collapse_wall: float          # s, the collapse alone (the codes' loop times after the gate opens)
     collapse_steps: int
     params: dict = field(default_factory=dict)    # kn, kt, gamma_n, ... as the deck printed them
-    published: tuple = ()
-    profile: list = field(default_factory=list)
-    log: str = ""
-
-    @property
-    def at_rest(self) -> bool:
-        return self.ke_per_grain < self.ke_rest
 
     def summary(self) -> str:
         lo, hi = self.published
@@ -177,8 +126,8 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
                      timeout=timeout)
     log = done.check("in the collapse", out / "final.dump")
     walls = code == "hybrid" or int(variables.get("walls", 0)) == 1
-    res = analyse3(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d,
-                   None if walls else geo["thickness"])
+    res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d,
+                  None if walls else geo["thickness"])
     if code == "hybrid":    # the continuum's surface too (its points are in the frames)
         from column_collapse import combine_surfaces, points_surface
         from mpm_results import load_run

@@ -45,7 +45,7 @@ import numpy as np
 
 from hgtools import cli, logs
 from hgtools.cache import Settled
-from hgtools.discharge import fit_rate, read_discharge, walls_far
+from hgtools.discharge import Discharge, measure, walls_far
 from hgtools.grains import FLOOR_SPACING, LATTICE_SPACING, grains_needed, jittered, max_overlap, pour_margin, \
     read_data, write_spheres
 from hgtools.runner import CODES, Forms
@@ -140,71 +140,26 @@ def packing_fraction(data: dict, width: float, d: float, margin: float = PACKING
     return float(covered.mean()), top
 
 
-@dataclass
-class Silo3dResult:
+@dataclass(kw_only=True)
+class Silo3dResult(Discharge):
     code: str
-    width: float
-    height: float
-    orifice: float                 # nominal D, m
     orifice_eff: float             # inscribed diameter of the lattice hole, m
-    d: float
-    rho: float
-    grains: int                    # grains in the settled silo
-    mass0: float                   # their mass, kg
     floor_mass: float              # mass of the frozen floor spheres (type 2), kg
-    packing: float                 # volume fraction of the settled packing (bulk)
-    fill_height: float             # max(y + r) of the settled grains, m
-    rate: float                    # W, fitted steady rate, kg/s
-    rate_first: float
-    rate_second: float
-    fit_rms: float
-    fit_rel: float
-    window: tuple
-    beverloo: float                # 3D Beverloo with D_eff, kg/s
-    discharged_fraction: float
-    mass_balance: float            # max |M_in + M_fall + M_del - M0| / M0 over the records (nan: hybrid)
-    lost: int                      # grains that left the box uncounted (-1: hybrid)
-    settled_below: int             # grains below the lid level after settling (must be 0)
-    settled_mass: float
-    trimmed_mass: float
-    settle_time: float
-    max_overlap_initial: float     # largest overlap / d in the settled silo
-    end_time: float
     prep_code: str
-    prep_wall_time: float
-    wall_time: float               # s, the discharge
-    prepared: bool
-    steps: int = 0
     params: dict = field(default_factory=dict)
-    times: list = field(default_factory=list)
-    m_in: list = field(default_factory=list)
-    m_fall: list = field(default_factory=list)
-    m_del: list = field(default_factory=list)
-    log: str = ""
-
-    @property
-    def ratio(self) -> float:
-        return self.rate / self.beverloo
-
-    @property
-    def halves_spread(self) -> float:
-        return abs(self.rate_first - self.rate_second) / self.rate
 
     @property
     def walls_far(self) -> bool:
         return walls_far(self.width, self.orifice_eff, self.d)
 
     def summary(self) -> str:
-        t_a, t_b = self.window
         return (f"{self.code}: 3D silo W = {self.width:g} m, H = {self.height:g} m, D = {self.orifice:g} m "
                 f"(inscribed {self.orifice_eff:.4g} m, D/d = {self.orifice_eff / self.d:.3g}), d = {self.d:g} m: "
                 f"{self.grains} grains, {self.mass0:.4g} kg, packing fraction {self.packing:.4f}\n"
                 f"  preparation ({self.prep_code}): {self.settle_time:.3f} s simulated, wall "
                 f"{self.prep_wall_time:.1f} s{' (this run)' if self.prepared else ' (cached)'}; discharge: "
                 f"{self.end_time:.3f} s simulated, {self.steps} steps, wall {self.wall_time:.1f} s\n"
-                f"  rate W = {self.rate:.4g} kg/s (fit {t_a:.3f}..{t_b:.3f} s; halves {self.rate_first:.4g}, "
-                f"{self.rate_second:.4g}, spread {100 * self.halves_spread:.1f} %; rms residual "
-                f"{100 * self.fit_rel:.2f} % of the window's mass)\n"
+                + self.rate_line("kg/s") +
                 f"  3D Beverloo C = {BEVERLOO_C:g}, k = {BEVERLOO_K:g}: {self.beverloo:.4g} kg/s; "
                 f"measured/Beverloo = {self.ratio:.3f}"
                 f"{'' if self.walls_far else ' (silo narrower than W > D + 30 d)'}\n"
@@ -274,30 +229,26 @@ def run(code: str = "lammps", width: float = DEFAULTS["width"], height: float = 
     text = done.check(f"in the {code} discharge", out / "discharge.dat", marker="DEM3D end:")
     mo = re.search(r"^DEM3D open: step \S+, grains (\d+), mass (\S+) kg", text, re.M)
     n0, mass0 = int(mo.group(1)), float(mo.group(2))
-    rec = read_discharge(out / "discharge.dat")
-    t, m_in, m_fall, m_del = rec[:, 0], rec[:, 1], rec[:, 2], rec[:, 3]
-    n_in, n_fall, n_del, n_all = (rec[:, k].astype(int) for k in (4, 5, 6, 7))
+    figures, (n_in, n_fall, n_del, n_all) = measure(out / "discharge.dat", mass0)
     if code != "hybrid":
-        balance = float(np.max(np.abs(m_in + m_fall + m_del - mass0)) / mass0)
         lost = int(max(np.max(n0 - n_all - n_del), np.max(np.abs(n_all - n_in - n_fall)),
                        round(logs.number(r"^DEM3D end:.* lost (\S+)", text))))
     else:  # grains become points and back: the counts do not balance (the fix's totals do)
-        balance, lost = float("nan"), -1
-    fit = fit_rate(t, m_fall + m_del, mass0)
+        figures["mass_balance"], lost = float("nan"), -1
     settled_state = read_data(settled)
     phi, top = packing_fraction(settled_state, width, d)
     rho = float(extra.get("rho", DEFAULTS["rho"]))
+    steps, loop_time = logs.loops(text)
     return Silo3dResult(
         code=code, width=width, height=height, orifice=orifice, orifice_eff=float(info["orifice_eff"]), d=d,
         rho=rho, grains=n0, mass0=mass0, packing=phi, fill_height=top,
         floor_mass=float(settled_state["mass"][settled_state["type"] == 2].sum()),
-        beverloo=beverloo_3d(phi * rho, float(info["orifice_eff"]), d),
-        discharged_fraction=float((m_fall[-1] + m_del[-1]) / mass0), mass_balance=balance, lost=lost,
+        beverloo=beverloo_3d(phi * rho, float(info["orifice_eff"]), d), lost=lost,
         settled_below=int(info["below"]), settled_mass=float(info["mass"]), trimmed_mass=float(info["trimmed_mass"]),
         settle_time=float(info["settle_time"]), max_overlap_initial=max_overlap(settled_state, d),
-        end_time=float(t[-1]), prep_code=info["code"], prep_wall_time=float(info["wall_time"]), wall_time=done.wall,
-        prepared=prepared, steps=logs.loops(text)[0], params=logs.contact_params(text, "DEM3D"), times=t.tolist(),
-        m_in=m_in.tolist(), m_fall=m_fall.tolist(), m_del=m_del.tolist(), log=logs.lines(text, "DEM3D "), **fit)
+        prep_code=info["code"], prep_wall_time=float(info["wall_time"]), wall_time=done.wall, prepared=prepared,
+        steps=steps, loop_time=loop_time, params=logs.contact_params(text, "DEM3D"), log=logs.lines(text, "DEM3D "),
+        **figures)
 
 
 def main(argv=None) -> int:

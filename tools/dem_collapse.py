@@ -23,54 +23,28 @@ from __future__ import annotations
 
 import re
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 
 from column_collapse import published_runout_range
 from hgtools import cli, logs
 from hgtools.cache import Settled
-from hgtools.grains import connected_deposit, max_overlap, read_dump, surface_profile
+from hgtools.collapse import Deposit, measure
+from hgtools.grains import read_dump
 from hgtools.runner import Forms
 
 FORMS = Forms("column_collapse", lammps="dem_2d.lmp", liggghts=None, hybrid=None)   # the hybrid twin is in the deck
 DECK = FORMS.deck("lammps")
 
 
-
-@dataclass
-class DemResult:
-    aspect: float
-    width: float
-    d: float
-    grains: int
-    runout: float                  # (Lf - L0)/L0, front = connected deposit
-    runout_p995: float             # front = 99.5th percentile of x + r
-    runout_max: float              # front = max x + r over all grains
-    front: float                   # Lf, m
-    height: float                  # initial column height (max y + r), m
-    final_height: float            # final deposit height at the wall (max y + r), m
-    max_speed: float               # final, m/s, all flowing grains
-    max_speed_deposit: float       # final, m/s, grains of the connected deposit
-    max_overlap_initial: float     # largest overlap / d in the settled column
-    max_overlap_final: float       # largest overlap / d in the deposit
-    detached: int                  # grains outside the connected deposit
-    ke_per_grain: float            # final mean kinetic energy per grain, J
-    ke_rest: float                 # the deck's rest threshold on it, J
+@dataclass(kw_only=True)
+class DemResult(Deposit):
     end_time: float                # simulated time at the end (preparation included), s
     length: float                  # domain length (end wall), m
-    wall_time: float               # s, this run (collapse, plus preparation if not cached)
     prepared: bool                 # True if the settled column was built in this run
     steps: int = 0                 # LAMMPS steps of the collapse runs
     loop_time: float = 0.0         # s, LAMMPS's summed loop times of those runs
-    published: tuple = ()
-    profile: list = field(default_factory=list)   # [(x_centre, surface height)] per bin, connected deposit only
-    log: str = ""
-
-    @property
-    def at_rest(self) -> bool:
-        return self.ke_per_grain < self.ke_rest
 
     def summary(self) -> str:
         lo, hi = self.published
@@ -87,34 +61,6 @@ class DemResult:
                 f" KE/grain {self.ke_per_grain:.2e} J (rest < {self.ke_rest:.2e}),\n"
                 f"  max speed {self.max_speed:.2e} m/s (deposit {self.max_speed_deposit:.2e} m/s), max overlap/d settled {self.max_overlap_initial:.4f},"
                 f" final {self.max_overlap_final:.4f}")
-
-
-def analyse(final: dict, initial: dict, aspect: float, width: float, d: float) -> dict:
-    grains = final["type"] == 1
-    x, y, r = final["x"][grains], final["y"][grains], final["radius"][grains]
-    mask = connected_deposit(np.column_stack([x, y]), r, d)
-    edge = x + r
-    front = float(edge[mask].max())
-    gi = initial["type"] == 1
-    height = float((initial["y"][gi] + initial["radius"][gi]).max())
-    near_wall = x < 2 * d
-    speed = np.hypot(final["vx"][grains], final["vy"][grains])
-    return dict(
-        grains=int(grains.sum()),
-        runout=(front - width) / width,
-        runout_p995=(float(np.percentile(edge, 99.5)) - width) / width,
-        runout_max=(float(edge.max()) - width) / width,
-        front=front,
-        height=height,
-        # 0 when no grain is at the wall (a hybrid whose continuum fills the corner)
-        final_height=float(np.max((y + r)[near_wall], initial=0.0)),
-        max_speed=float(speed.max()),
-        max_speed_deposit=float(speed[mask].max()),
-        max_overlap_initial=max_overlap(initial, d),
-        max_overlap_final=max_overlap(final, d),
-        detached=int((~mask).sum()),
-        profile=surface_profile(x[mask], y[mask], r[mask], 2 * d, front),  # the deposit, as the runout
-    )
 
 
 def settled(aspect: float, width: float, d: float, seed: int, extra: dict) -> Settled:
@@ -156,7 +102,7 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
     log = done.check("in the collapse", out / "final.dump")
     if prep and use_cache:
         cache.store(target)
-    res = analyse(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), aspect, width, d)
+    res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d)
     m = re.search(END_RE, log, re.M)
     if not m:
         raise RuntimeError(f"no 'DEM collapse end' line in {out / 'log.lammps'}")

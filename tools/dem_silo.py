@@ -47,14 +47,14 @@ from __future__ import annotations
 import math
 import re
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from hgtools import cli, logs
 from hgtools.cache import Settled
-from hgtools.discharge import fit_rate, read_discharge, walls_far
+from hgtools.discharge import Discharge, measure, walls_far
 from hgtools.grains import max_overlap, read_dump
 from hgtools.runner import Forms
 
@@ -73,70 +73,21 @@ def beverloo_2d(rho_b: float, orifice: float, d: float, c: float = BEVERLOO_C2D,
     return c * rho_b * math.sqrt(g) * max(orifice - k * d, 0.0) ** 1.5
 
 
-@dataclass
-class SiloResult:
-    width: float
-    height: float
-    orifice: float
-    d: float
-    rho: float
-    grains: int                    # grains in the settled silo
-    mass0: float                   # their mass, kg per m of depth
-    packing: float                 # area fraction phi of the settled packing (bulk)
-    fill_height: float             # max(y + r) of the settled grains, m
-    rate: float                    # W, fitted steady rate, kg/s per m of depth
-    rate_first: float              # slope over the first half of the window
-    rate_second: float             # slope over the second half
-    fit_rms: float                 # rms residual of the line, kg/m
-    fit_rel: float                 # fit_rms / mass discharged over the window
-    window: tuple                  # (t_a, t_b), s after the opening
-    beverloo: float                # 2D Beverloo estimate, kg/s per m
-    discharged_fraction: float     # at the end of the run
-    mass_balance: float            # max |M_in + M_fall + M_del - M0| / M0 over the records
-    lost: int                      # grains that left the box without being counted
+@dataclass(kw_only=True)
+class SiloResult(Discharge):
     below_at_open: int             # grains below the floor when the orifice opened (must be 0)
-    settled_below: int             # grains below the closed floor after settling (must be 0)
-    settled_mass: float            # mass after settling (= mass after trimming), kg/m
-    trimmed_mass: float            # mass right after trimming, kg/m
-    settle_time: float             # simulated time of the preparation, s
-    max_overlap_initial: float     # largest overlap / d in the settled silo
-    end_time: float                # simulated discharge time, s
-    prep_wall_time: float          # s, preparation (this run, or the cached one's)
-    wall_time: float               # s, the discharge
-    prepared: bool                 # True if the settled silo was built in this run
-    steps: int = 0                 # LAMMPS steps of the discharge
-    loop_time: float = 0.0         # s, LAMMPS's summed loop times of those steps
-    times: list = field(default_factory=list)      # records: s after the opening
-    m_in: list = field(default_factory=list)       # kg/m in the silo
-    m_fall: list = field(default_factory=list)     # kg/m below the floor, still falling
-    m_del: list = field(default_factory=list)      # kg/m deleted
-    log: str = ""
-
-    @property
-    def ratio(self) -> float:
-        """Measured rate / Beverloo's."""
-        return self.rate / self.beverloo
-
-    @property
-    def halves_spread(self) -> float:
-        """|rate_first - rate_second| / rate."""
-        return abs(self.rate_first - self.rate_second) / self.rate
 
     @property
     def walls_far(self) -> bool:
         return walls_far(self.width, self.orifice, self.d)
 
     def summary(self) -> str:
-        t_a, t_b = self.window
         return (f"DEM silo W = {self.width:g} m, H = {self.height:g} m, D = {self.orifice:g} m "
                 f"(D/d = {self.orifice / self.d:.3g}), d = {self.d:g} m: {self.grains} grains, "
                 f"{self.mass0:.4g} kg/m, packing fraction {self.packing:.4f}\n"
                 f"  preparation: {self.settle_time:.3f} s simulated, wall {self.prep_wall_time:.1f} s"
                 f"{' (this run)' if self.prepared else ' (cached)'}; discharge: {self.end_time:.3f} s "
-                f"simulated, {self.steps} steps, wall {self.wall_time:.1f} s\n"
-                f"  rate W = {self.rate:.4g} kg/s/m (fit {t_a:.3f}..{t_b:.3f} s; halves {self.rate_first:.4g}, "
-                f"{self.rate_second:.4g}, spread {100 * self.halves_spread:.1f} %; rms residual "
-                f"{100 * self.fit_rel:.2f} % of the window's mass)\n"
+                f"simulated, {self.steps} steps, wall {self.wall_time:.1f} s\n" + self.rate_line("kg/s/m") +
                 f"  2D Beverloo C = {BEVERLOO_C2D:.3f}, k = {BEVERLOO_K:g}: {self.beverloo:.4g} kg/s/m; "
                 f"measured/Beverloo = {self.ratio:.3f}"
                 f"{'' if self.walls_far else ' (silo narrower than W > D + 30 d: walls may raise the rate)'}\n"
@@ -226,30 +177,22 @@ def run_dem_silo(width: float = 0.1, height: float = 0.15, orifice: float = 0.02
     if not mo:
         raise RuntimeError(f"no 'DEM silo open' line in {done.log}")
     n0, mass0, below_open = int(mo.group(1)), float(mo.group(2)), int(mo.group(4))
-    rec = read_discharge(out / "discharge.dat")
-    t, m_in, m_fall, m_del = rec[:, 0], rec[:, 1], rec[:, 2], rec[:, 3]
-    n_in, n_fall, n_del, n_all = (rec[:, k].astype(int) for k in (4, 5, 6, 7))
+    figures, (n_in, n_fall, n_del, n_all) = measure(out / "discharge.dat", mass0)
     if hybrid_vars is None:
-        balance = float(np.max(np.abs(m_in + m_fall + m_del - mass0)) / mass0)
         lost = int(max(np.max(n0 - n_all - n_del), np.max(n0 - n_in - n_fall - n_del),
                        round(logs.number(r"^DEM silo end: .* lost (\S+)", text))))
     else:  # grains become points and back: the counts do not balance (the fix's totals do)
-        balance, lost = float("nan"), -1
-    # what left through the orifice: in the hybrid twin part of what is inside is continuum
-    fit = fit_rate(t, m_fall + m_del, mass0)
+        figures["mass_balance"], lost = float("nan"), -1
     initial = read_dump(out / "initial.dump")
     phi, top = packing_fraction(initial, width, d)
     steps, loop_time = logs.loops(text)
     return SiloResult(
         width=width, height=height, orifice=orifice, d=d, rho=rho, grains=n0, mass0=mass0, packing=phi,
-        fill_height=top, beverloo=beverloo_2d(phi * rho, orifice, d),
-        discharged_fraction=float((m_fall[-1] + m_del[-1]) / mass0), mass_balance=balance, lost=lost,
-        below_at_open=below_open, settled_below=int(info["below"]), settled_mass=float(info["mass"]),
-        trimmed_mass=float(info["trimmed_mass"]), settle_time=float(info["settle_time"]),
-        max_overlap_initial=max_overlap(initial, d), end_time=float(t[-1]),
+        fill_height=top, beverloo=beverloo_2d(phi * rho, orifice, d), lost=lost, below_at_open=below_open,
+        settled_below=int(info["below"]), settled_mass=float(info["mass"]), trimmed_mass=float(info["trimmed_mass"]),
+        settle_time=float(info["settle_time"]), max_overlap_initial=max_overlap(initial, d),
         prep_wall_time=float(info["wall_time"]), wall_time=done.wall, prepared=prep, steps=steps,
-        loop_time=loop_time, times=t.tolist(), m_in=m_in.tolist(), m_fall=m_fall.tolist(), m_del=m_del.tolist(),
-        log=logs.lines(text, "DEM "), **fit)
+        loop_time=loop_time, log=logs.lines(text, "DEM "), **figures)
 
 
 def main(argv=None) -> int:
