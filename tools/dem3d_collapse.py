@@ -34,13 +34,9 @@ from hgtools.runner import CODES, Forms
 FORMS = Forms("column_collapse")
 
 
-def runout_upper(aspect: float) -> float:
-    return 1.8 * aspect if aspect < 1.8 else 2.3 * aspect ** (2.0 / 3.0)
-
-
 def domain_length(aspect: float, width: float, d: float) -> float:
     """x of the end wall: as the decks' default (twice the published upper bound, margin)."""
-    return width * (1.0 + 2.0 * runout_upper(aspect)) + 20 * d
+    return width * (1.0 + 2.0 * published_runout_range(aspect)[1]) + 20 * d
 
 
 def pour_lattice(length: float, W: float, d: float, volume: float) -> tuple:

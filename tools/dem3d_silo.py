@@ -46,8 +46,8 @@ import numpy as np
 from hgtools import cli, logs
 from hgtools.cache import Settled
 from hgtools.discharge import Discharge, measure, walls_far
-from hgtools.grains import FLOOR_SPACING, LATTICE_SPACING, grains_needed, jittered, max_overlap, pour_margin, \
-    read_data, write_spheres
+from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, covered_fraction, grains_needed, jittered, max_overlap,
+                            pour_margin, read_data, write_spheres)
 from hgtools.runner import CODES, Forms
 
 FORMS = Forms("silo")
@@ -115,29 +115,10 @@ def packing_fraction(data: dict, width: float, d: float, margin: float = PACKING
     box margin*d from the side walls, the floor (y = 0) and the free surface (max y + r),
     rasterised on voxels of d/10."""
     g = data["type"] == 1
-    x, y, z, r = data["x"][g], data["y"][g], data["z"][g], data["radius"][g]
-    top = float((y + r).max())
-    lo = np.array([margin * d, margin * d, margin * d])
-    hi = np.array([width - margin * d, top - margin * d, width - margin * d])
-    h = voxel or d / 10
-    n = np.maximum(((hi - lo) / h).astype(int), 1)
-    covered = np.zeros(n, dtype=bool)
-    cen = [lo[k] + (np.arange(n[k]) + 0.5) * h for k in range(3)]
-    for xi, yi, zi, ri in zip(x, y, z, r):
-        p = (xi, yi, zi)
-        sl = []
-        for k in range(3):
-            a, b = np.searchsorted(cen[k], p[k] - ri), np.searchsorted(cen[k], p[k] + ri)
-            if a == b:
-                break
-            sl.append((a, b))
-        else:
-            (a0, b0), (a1, b1), (a2, b2) = sl
-            dx = (cen[0][a0:b0] - xi)[:, None, None]
-            dy = (cen[1][a1:b1] - yi)[None, :, None]
-            dz = (cen[2][a2:b2] - zi)[None, None, :]
-            covered[a0:b0, a1:b1, a2:b2] |= dx * dx + dy * dy + dz * dz <= ri * ri
-    return float(covered.mean()), top
+    r = data["radius"][g]
+    top = float((data["y"][g] + r).max())
+    return covered_fraction(np.column_stack([data["x"][g], data["y"][g], data["z"][g]]), r, [margin * d] * 3,
+                            [width - margin * d, top - margin * d, width - margin * d], voxel or d / 10), top
 
 
 @dataclass(kw_only=True)

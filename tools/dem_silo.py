@@ -55,7 +55,7 @@ import numpy as np
 from hgtools import cli, logs
 from hgtools.cache import Settled
 from hgtools.discharge import Discharge, measure, walls_far
-from hgtools.grains import max_overlap, read_dump
+from hgtools.grains import covered_fraction, dump_positions, max_overlap, read_dump
 from hgtools.runner import Forms
 
 FORMS = Forms("silo", lammps="dem_2d.lmp", liggghts=None, hybrid="hybrid_2d.lmp")
@@ -101,24 +101,9 @@ def packing_fraction(dump: dict, width: float, d: float, margin: float = PACKING
     """(area fraction, fill height) of the settled grains: the disks' area in the window
     margin*d from the side walls, the floor and the free surface (max y + r), rasterised on
     pixels of d/20."""
-    x, y, r = dump["x"], dump["y"], dump["radius"]
-    top = float((y + r).max())
-    x0, x1, y0, y1 = margin * d, width - margin * d, margin * d, top - margin * d
-    h = pixel or d / 20
-    nx, ny = int((x1 - x0) / h), int((y1 - y0) / h)
-    covered = np.zeros((ny, nx), dtype=bool)
-    xc = x0 + (np.arange(nx) + 0.5) * h
-    yc = y0 + (np.arange(ny) + 0.5) * h
-    for xi, yi, ri in zip(x, y, r):
-        if xi + ri < x0 or xi - ri > x1 or yi + ri < y0 or yi - ri > y1:
-            continue
-        i0, i1 = np.searchsorted(yc, yi - ri), np.searchsorted(yc, yi + ri)
-        j0, j1 = np.searchsorted(xc, xi - ri), np.searchsorted(xc, xi + ri)
-        if i0 == i1 or j0 == j1:
-            continue
-        inside = (xc[None, j0:j1] - xi) ** 2 + (yc[i0:i1, None] - yi) ** 2 <= ri * ri
-        covered[i0:i1, j0:j1] |= inside
-    return float(covered.mean()), top
+    top = float((dump["y"] + dump["radius"]).max())
+    return covered_fraction(dump_positions(dump), dump["radius"], (margin * d, margin * d),
+                            (width - margin * d, top - margin * d), pixel or d / 20), top
 
 
 def settled(width: float, height: float, d: float, seed: int, extra: dict,

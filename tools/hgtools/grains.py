@@ -133,6 +133,23 @@ def surface_profile(x, y, r, bin_width, length):
     return [(float(c), float(h)) for c, h in zip(centres, top) if np.isfinite(h)]
 
 
+def covered_fraction(pos, r, lo, hi, cell: float) -> float:
+    """The fraction of the box [lo, hi] (2D or 3D) that the disks or spheres (centres pos, N x dim;
+    radii r) cover, rasterised on square (cubic) cells of side `cell`."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    n = np.maximum(((hi - lo) / cell).astype(int), 1)
+    centres = [lo[k] + (np.arange(n[k]) + 0.5) * cell for k in range(len(n))]
+    covered = np.zeros(n, dtype=bool)
+    for p, ri in zip(np.asarray(pos, dtype=float), r):
+        span = [(np.searchsorted(c, p[k] - ri), np.searchsorted(c, p[k] + ri)) for k, c in enumerate(centres)]
+        if any(a == b for a, b in span):
+            continue
+        dist2 = sum((centres[k][a:b] - p[k]).reshape([-1 if j == k else 1 for j in range(len(n))]) ** 2
+                    for k, (a, b) in enumerate(span))
+        covered[tuple(slice(a, b) for a, b in span)] |= dist2 <= ri * ri
+    return float(covered.mean())
+
+
 def read_data(path: Path) -> dict:
     """The Atoms section of a data file (written by this driver or by write_data of either
     code: id type diameter density x y z [ix iy iz]) as numpy columns, with radius and mass."""
