@@ -149,11 +149,9 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
 
 
 def main(argv=None) -> int:
-    p = cli.scene_parser(__doc__, seed=2024, codes=CODES)
-    p.add_argument("--aspect", type=float, default=2.0)
-    p.add_argument("--width", type=float, default=0.03, help="L0, m")
-    p.add_argument("--d", type=float, default=0.002)
-    p.add_argument("--thickness", type=int, default=4, help="slab thickness in floor rows (1.2 d each)")
+    p = cli.scene_parser(__doc__, 2024, dict(
+        aspect=(2.0, "H0/L0"), width=(0.03, "L0, m"), d=(0.002, "mean grain diameter, m"),
+        thickness=(4, "slab thickness in floor rows (1.2 d each)")), codes=CODES)
     a = cli.parse(p, argv)
     res = run(a.code, a.aspect, a.width, a.d, a.thickness, a.np_, a.out, a.seed, extra_vars=a.var)
     cli.print_result(res, a.json)

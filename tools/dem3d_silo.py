@@ -233,18 +233,16 @@ def run(code: str = "lammps", width: float = DEFAULTS["width"], height: float = 
 
 
 def main(argv=None) -> int:
-    p = cli.scene_parser(__doc__, seed=2024, codes=CODES, cache="silo (with --out: prepared in it)",
-                         var="shared deck variable (mu, e, knfac, dtdiv, ketol, rho, tout)",
-                         hvar="variable of hybrid_3d.lmp (hcell, hevery, hadapt, hdepth, hband, houtlet, ...)")
+    p = cli.scene_parser(__doc__, 2024, dict(
+        width=(DEFAULTS["width"], "silo width W, m"), height=(DEFAULTS["height"], "fill height H, m"),
+        orifice=(DEFAULTS["orifice"], "orifice diameter D, m"), d=(DEFAULTS["d"], "mean grain diameter, m"),
+        tdis=(1.0, "discharge time after the opening, s"), fstop=(0.9, "or stop once this mass fraction has left"),
+        prep_np=(None, "MPI ranks of the preparation (default --np)", int)),
+        codes=CODES, cache="silo (with --out: prepared in it)",
+        var="shared deck variable (mu, e, knfac, dtdiv, ketol, rho, tout)",
+        hvar="variable of hybrid_3d.lmp (hcell, hevery, hadapt, hdepth, hband, houtlet, ...)")
     p.add_argument("--prep-code", choices=("lammps", "liggghts"), default="lammps",
                    help="code that prepares the settled silo (default lammps)")
-    p.add_argument("--width", type=float, default=DEFAULTS["width"], help="silo width W, m")
-    p.add_argument("--height", type=float, default=DEFAULTS["height"], help="fill height H, m")
-    p.add_argument("--orifice", type=float, default=DEFAULTS["orifice"], help="orifice diameter D, m")
-    p.add_argument("--d", type=float, default=DEFAULTS["d"], help="mean grain diameter, m")
-    p.add_argument("--tdis", type=float, default=1.0, help="discharge time after the opening, s")
-    p.add_argument("--fstop", type=float, default=0.9, help="or stop once this mass fraction has left")
-    p.add_argument("--prep-np", type=int, default=None, help="MPI ranks of the preparation (default --np)")
     a = cli.parse(p, argv)
     res = run(a.code, a.width, a.height, a.orifice, a.d, a.np_, a.out, a.seed, a.prep_code, not a.no_cache,
               a.cache_dir, a.tdis, a.fstop, extra_vars=a.var, hybrid_vars=a.hvar, prep_np=a.prep_np)

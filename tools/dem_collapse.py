@@ -125,10 +125,9 @@ def run_from_settled(**kwargs) -> DemResult:
 
 
 def main(argv=None) -> int:
-    p = cli.scene_parser(__doc__, seed=12345, cache="column", var="deck variable (mu, e, knfac, dtdiv, ketol, rho, ...)")
-    p.add_argument("--aspect", type=float, default=2.0, help="H0/L0")
-    p.add_argument("--width", type=float, default=0.1, help="L0, m")
-    p.add_argument("--d", type=float, default=0.002, help="mean grain diameter, m")
+    p = cli.scene_parser(__doc__, 12345, dict(aspect=(2.0, "H0/L0"), width=(0.1, "L0, m"),
+                                              d=(0.002, "mean grain diameter, m")),
+                         cache="column", var="deck variable (mu, e, knfac, dtdiv, ketol, rho, ...)")
     a = cli.parse(p, argv)
     res = run(a.aspect, a.width, a.d, a.np_, a.out, a.seed, not a.no_cache, extra_vars=a.var)
     cli.print_result(res, a.json)

@@ -334,17 +334,13 @@ def run(code: str = "lammps", width_rows: int = 25, depth: float = 0.036, d: flo
 
 
 def main(argv=None) -> int:
-    p = cli.scene_parser(__doc__, seed=2024, codes=CODES,
-                         var="deck variable (e, mu, knv, knfac, dtdiv, vrest, tmin, tmax, trec, ...)",
-                         hvar="variable of the hybrid twin (hcell, hevery, hadapt, hdepth, hband, hradius, ...)")
-    p.add_argument("--width", type=int, default=25, help="box side in floor rows (1.2 d each)")
-    p.add_argument("--depth", type=float, default=0.036, help="bed depth, m")
-    p.add_argument("--d", type=float, default=0.002, help="mean grain diameter, m")
-    p.add_argument("--dp", type=float, default=0.016, help="projectile diameter, m")
-    p.add_argument("--rhop", type=float, default=2500.0, help="projectile density, kg/m^3")
-    p.add_argument("--speed", type=float, default=5.0, help="impact speed v0, m/s")
-    p.add_argument("--bed", default=None, help="settled bed (bed.data of an earlier run, same sizes): "
-                   "skip the settling")
+    p = cli.scene_parser(__doc__, 2024, dict(
+        width=(25, "box side in floor rows (1.2 d each)"), depth=(0.036, "bed depth, m"),
+        d=(0.002, "mean grain diameter, m"), dp=(0.016, "projectile diameter, m"),
+        rhop=(2500.0, "projectile density, kg/m^3"), speed=(5.0, "impact speed v0, m/s"),
+        bed=(None, "settled bed (bed.data of an earlier run, same sizes): skip the settling", str)),
+        codes=CODES, var="deck variable (e, mu, knv, knfac, dtdiv, vrest, tmin, tmax, trec, ...)",
+        hvar="variable of the hybrid twin (hcell, hevery, hadapt, hdepth, hband, hradius, ...)")
     a = cli.parse(p, argv)
     res = run(a.code, a.width, a.depth, a.d, a.dp, a.speed, a.rhop, a.np_, a.out, a.seed,
               extra_vars=a.var, hybrid_vars=a.hvar, bed=a.bed)

@@ -256,15 +256,12 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
 
 
 def main(argv=None) -> int:
-    p = cli.scene_parser(__doc__, seed=2024, codes=CODES, hvar="hybrid_3d.lmp variable (with --code hybrid)")
-    p.add_argument("--depth", type=float, default=0.012, help="h, m")
-    p.add_argument("--bedh", type=float, default=None, help="H, bed height, m (default 2 h)")
-    p.add_argument("--d", type=float, default=0.002)
-    p.add_argument("--drag", type=float, default=None, help="dragged distance, m (default 3 h)")
-    p.add_argument("--speed", type=float, default=0.1, help="V, m/s")
-    p.add_argument("--topfac", type=float, default=0.25, help="blade top edge above the bed, in h")
-    p.add_argument("--thickness", type=int, default=None,
-                   help=f"slab thickness in floor rows (1.2 d each; default 4, hybrid {HYBRID_ROWS})")
+    p = cli.scene_parser(__doc__, 2024, dict(
+        depth=(0.012, "h, m"), bedh=(None, "H, bed height, m (default 2 h)"), d=(0.002, "mean grain diameter, m"),
+        drag=(None, "dragged distance, m (default 3 h)"), speed=(0.1, "V, m/s"),
+        topfac=(0.25, "blade top edge above the bed, in h"),
+        thickness=(None, f"slab thickness in floor rows (1.2 d each; default 4, hybrid {HYBRID_ROWS})", int)),
+        codes=CODES, hvar="hybrid_3d.lmp variable (with --code hybrid)")
     a = cli.parse(p, argv)
     res = run(a.code, a.depth, a.bedh, a.d, a.drag, a.speed, a.topfac, a.thickness, a.np_, a.out, a.seed,
               extra_vars=a.var, hybrid_vars=a.hvar)

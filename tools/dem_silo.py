@@ -181,15 +181,12 @@ def run_dem_silo(width: float = 0.1, height: float = 0.15, orifice: float = 0.02
 
 
 def main(argv=None) -> int:
-    p = cli.scene_parser(__doc__, seed=12345, cache="silo",
-                         var="deck variable (mu, e, knfac, dtdiv, ketol, rho, tout, ...)",
-                         hvar="variable of the hybrid twin (hcell, hevery, hadapt, hdepth, hband, hyoungs, hphi)")
-    p.add_argument("--width", type=float, default=0.1, help="silo width W, m")
-    p.add_argument("--height", type=float, default=0.15, help="fill height H, m")
-    p.add_argument("--orifice", type=float, default=0.02, help="orifice width D, m")
-    p.add_argument("--d", type=float, default=0.002, help="mean grain diameter, m")
-    p.add_argument("--tdis", type=float, default=1.0, help="discharge time after the opening, s")
-    p.add_argument("--fstop", type=float, default=0.9, help="or stop once this mass fraction has left")
+    p = cli.scene_parser(__doc__, 12345, dict(
+        width=(0.1, "silo width W, m"), height=(0.15, "fill height H, m"), orifice=(0.02, "orifice width D, m"),
+        d=(0.002, "mean grain diameter, m"), tdis=(1.0, "discharge time after the opening, s"),
+        fstop=(0.9, "or stop once this mass fraction has left")),
+        cache="silo", var="deck variable (mu, e, knfac, dtdiv, ketol, rho, tout, ...)",
+        hvar="variable of the hybrid twin (hcell, hevery, hadapt, hdepth, hband, hyoungs, hphi)")
     p.add_argument("--hybrid", action="store_true",
                    help="run the discharge coupled (adaptive zones, input_decks/silo/hybrid_2d.lmp)")
     a = cli.parse(p, argv)

@@ -6,12 +6,16 @@ import argparse
 import json
 
 
-def scene_parser(doc: str, seed: int, codes: tuple | None = None, hvar: str | None = None,
+def scene_parser(doc: str, seed: int, params: dict, codes: tuple | None = None, hvar: str | None = None,
                  var: str = "deck variable", cache: str | None = None) -> argparse.ArgumentParser:
-    """A driver's parser with the shared options: --np, --out, --seed, --var, --json; --code when
-    the scene has several forms (`codes`), --hvar (`hvar`: the hybrid twin's variables) and
-    --no-cache, --cache-dir (`cache`: what is cached)."""
+    """A driver's parser: its scene's parameters (`params`: {name: (default, help[, type])}, the type
+    the default's, float for None; --name, with - for _) and the shared options: --np, --out, --seed,
+    --var, --json; --code when the scene has several forms (`codes`), --hvar (`hvar`: the hybrid
+    twin's variables) and --no-cache, --cache-dir (`cache`: what is cached)."""
     p = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    for name, (default, text, *kind) in params.items():
+        kind = kind[0] if kind else float if default is None else type(default)
+        p.add_argument(f"--{name.replace('_', '-')}", type=kind, default=default, help=text)
     if codes:
         p.add_argument("--code", choices=sorted(codes), default="lammps", help="code of the run")
     p.add_argument("--np", type=int, default=1, dest="np_", help="MPI ranks (tools/mpirun.sh)")
