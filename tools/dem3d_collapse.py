@@ -10,7 +10,7 @@ dumps and measures the normalised runout (Lf - L0)/L0 and the final surface prof
 the front definition of tools/dem_collapse.py: the deposit is the cluster of flowing grains
 connected through contacts (gap < CONTACT_GAP d) to the grain nearest the back wall, here
 in 3D with the periodic z direction, and Lf = max(x + r) over it. The surface profile is
-dem_collapse.surface_profile (max y + r per x bin of 2 d) over the connected deposit.
+max(y + r) per x bin of 2 d over the connected deposit (hgtools.collapse.measure, as in 2D).
 
     tools/dem3d_collapse.py --code lammps   --np 2 --out /tmp/d3_lmp
     tools/dem3d_collapse.py --code liggghts --np 2 --out /tmp/d3_lig

@@ -18,7 +18,7 @@ $HYBRID_CACHE/dem3d_silo/ (or cache_dir); the discharge is then run by `--code`.
 
 Discharged mass: M_out(t) = M_fall + M_del, the mass of the grains whose centre went below
 the bottom of the floor layer (y = -d), still falling or deleted. The steady rate W is the
-least-squares slope of M_out(t) over the window of tools/dem_silo.py's fit_rate (from
+least-squares slope of M_out(t) over the window of tools/dem_silo.py (hgtools.discharge.fit_rate, from
 TRANSIENT = 0.1 s after the opening until FIT_FMAX of the mass has left, or the end).
 
 3D Beverloo law (docs/design.md section 6): W = C rho_b sqrt(g) (D - k d)^(5/2) with C = 0.58,
