@@ -54,7 +54,7 @@ def measure(path: Path, mass0: float) -> tuple[dict, np.ndarray]:
                    end_time=float(t[-1]), discharged_fraction=float((m_fall[-1] + m_del[-1]) / mass0),
                    mass_balance=float(np.max(np.abs(m_in + m_fall + m_del - mass0)) / mass0),
                    **fit_rate(t, m_fall + m_del, mass0))
-    return figures, rec[:, 4:8].astype(int)
+    return figures, rec[:, 4:8].astype(int).T
 
 
 @dataclass(kw_only=True)
