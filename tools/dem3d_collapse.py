@@ -27,9 +27,8 @@ import numpy as np
 from column_collapse import published_runout_range
 from hgtools import cli, logs
 from hgtools.collapse import Deposit, measure
-from hgtools.grains import (FLOOR_SPACING, LATTICE_JITTER, LATTICE_SPACING, grains_needed, jittered, pour_margin,
-                            read_dump, slab_floor, write_spheres)
-from hgtools.runner import CODES, Forms
+from hgtools.grains import FLOOR_SPACING, LATTICE_SPACING, jittered, pour_lattice, read_dump, slab_floor, write_spheres
+from hgtools.runner import CODES, Forms, workdir
 
 FORMS = Forms("column_collapse")
 
@@ -37,23 +36,6 @@ FORMS = Forms("column_collapse")
 def domain_length(aspect: float, width: float, d: float) -> float:
     """x of the end wall: as the decks' default (twice the published upper bound, margin)."""
     return width * (1.0 + 2.0 * published_runout_range(aspect)[1]) + 20 * d
-
-
-def pour_lattice(length: float, W: float, d: float, volume: float) -> tuple:
-    """The loose pouring lattice of a slab (periodic or walled) of thickness W: x sites from
-    `margin` to length - margin at LATTICE_SPACING d, z sites filling W (no two closer than
-    the largest grain plus the jitter), and the number of grains that fill `volume` at
-    PHI_EST, 8 % extra to trim. Returns (xs, zs, margin, need)."""
-    s = LATTICE_SPACING * d
-    nz = max(1, int(round(W / s)))
-    sz = W / nz
-    if sz < 1.1 * d + 2 * LATTICE_JITTER * d:
-        nz -= 1
-        sz = W / nz
-    margin = pour_margin(d)
-    xs = np.arange(margin, length - margin + 1e-12, s)
-    zs = (np.arange(nz) + 0.5) * sz
-    return xs, zs, margin, grains_needed(volume, d)
 
 
 def write_data(path: Path, aspect: float, width: float, d: float, thickness_d: int,
@@ -110,11 +92,7 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     thickness_d: slab thickness W in floor rows (W = thickness_d * 1.2 d).
     code "hybrid": dem_3d.lmp with its hybrid twin (hybrid_3d.lmp, side walls: walls 1) through
     tools/hybrid_launch.py; the result holds the grains, the points are in <out>/frames."""
-    # absolute: the codes run in it (cwd), and the paths they are given must hold there too
-    out = (Path(out) if out else Path.cwd() / f"dem3d_{code}").resolve()
-    out.mkdir(parents=True, exist_ok=True)
-    for f in ("final.dump", "initial.dump"):
-        (out / f).unlink(missing_ok=True)
+    out = workdir(out, f"dem3d_{code}", ("final.dump", "initial.dump"))
     geo = write_data(out / "grains.data", aspect, width, d, thickness_d, seed)
     variables = dict(data=out / "grains.data", out=out, aspect=aspect, width=width, d=d,
                      length=f"{geo['length']:.9g}", **(extra_vars or {}))

@@ -48,7 +48,7 @@ from hgtools.cache import Settled
 from hgtools.discharge import Discharge, measure, walls_far
 from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, covered_fraction, grains_needed, jittered, max_overlap,
                             pour_margin, read_data, write_spheres)
-from hgtools.runner import CODES, Forms
+from hgtools.runner import CODES, Forms, workdir
 
 FORMS = Forms("silo")
 G = 9.81
@@ -174,9 +174,7 @@ def prepare(width: float, height: float, orifice: float, d: float, seed: int, ex
     done = FORMS.run(prep_code, dict(data=work / "grains.data", out=work, settled=target, prep=1, discharge=0,
                                      width=width, height=height, orifice=orifice, d=d, **extra),
                      work / "log.prep.txt", np_=np_, exe=exe, timeout=timeout)
-    m = SETTLED_RE.search(done.check(f"to prepare the silo with {prep_code}", target))
-    if not m:
-        raise done.failed(f"to prepare the silo with {prep_code}")
+    m = done.match(f"to prepare the silo with {prep_code}", SETTLED_RE, target)
     info = dict(settle_time=float(m.group(1)), grains=int(m.group(2)), mass=float(m.group(3)),
                 trimmed_mass=float(m.group(4)), below=int(m.group(5)), wall_time=done.wall, code=prep_code, **geo)
     if not use_cache:
@@ -197,16 +195,13 @@ def run(code: str = "lammps", width: float = DEFAULTS["width"], height: float = 
     exe: the program of `code` (lammps, liggghts; default from PATH). prep_np: ranks of the
     preparation (default np_)."""
     extra = {k: str(v) for k, v in (extra_vars or {}).items()}
-    out = (Path(out) if out else Path.cwd() / f"dem3d_silo_{code}").resolve()
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "discharge.dat").unlink(missing_ok=True)
+    out = workdir(out, f"dem3d_silo_{code}", ("discharge.dat",))
     settled, info, prepared = prepare(width, height, orifice, d, seed, extra, prep_np or np_, prep_code, use_cache,
                                       cache_dir, None if use_cache else out / "prep",
                                       exe if prep_code == code else None, timeout)
     variables = dict(out=out, settled=settled, prep=0, discharge=1, width=width, height=height,
                      orifice=orifice, d=d, tdis=tdis, fstop=fstop, **extra)
-    done = FORMS.run(code, variables, out / "log.txt", {k: str(v) for k, v in (hybrid_vars or {}).items()},
-                     np_=np_, exe=exe, timeout=timeout)
+    done = FORMS.run(code, variables, out / "log.txt", hybrid_vars, np_=np_, exe=exe, timeout=timeout)
     text = done.check(f"in the {code} discharge", out / "discharge.dat", marker="DEM3D end:")
     mo = re.search(r"^DEM3D open: step \S+, grains (\d+), mass (\S+) kg", text, re.M)
     n0, mass0 = int(mo.group(1)), float(mo.group(2))

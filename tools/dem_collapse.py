@@ -32,7 +32,7 @@ from hgtools import cli, logs
 from hgtools.cache import Settled
 from hgtools.collapse import Deposit, measure
 from hgtools.grains import read_dump
-from hgtools.runner import Forms
+from hgtools.runner import Forms, workdir
 
 FORMS = Forms("column_collapse", lammps="dem_2d.lmp", liggghts=None, hybrid=None)   # the hybrid twin is in the deck
 DECK = FORMS.deck("lammps")
@@ -83,8 +83,7 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
     same as the pure DEM run's (built with stock LAMMPS if not cached). The result then
     holds the grains only; the continuum's points are in <out>/frames (HDF5)."""
     extra = {k: str(v) for k, v in (extra_vars or {}).items()}
-    out = (Path(out) if out else Path.cwd() / f"dem_collapse_a{aspect:g}").resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    out = workdir(out, f"dem_collapse_a{aspect:g}")
     cache = settled(aspect, width, d, seed, extra)
     prep = not (use_cache and cache.cached())
     target = out / "settled.restart" if prep else cache.path
@@ -97,8 +96,7 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
         FORMS.run("lammps", dict(variables, collapse=0), out / "log.lammps", **kw).check(
             "to prepare the column", target)
         variables["prep"] = 0
-    hybrid_vars = {k: str(v) for k, v in (hybrid_vars or {}).items()}   # may say hybrid 2 (adaptive zones)
-    done = FORMS.run(code, variables, out / "log.lammps", hybrid_vars, **kw)
+    done = FORMS.run(code, variables, out / "log.lammps", hybrid_vars, **kw)   # hybrid_vars may say hybrid 2
     log = done.check("in the collapse", out / "final.dump")
     if prep and use_cache:
         cache.store(target)

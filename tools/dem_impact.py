@@ -54,7 +54,7 @@ import numpy as np
 from hgtools import cli, logs
 from hgtools.grains import FLOOR_SPACING, LATTICE_SPACING, grains_needed, jittered, max_overlap, pour_margin, \
     read_dump, write_spheres
-from hgtools.runner import CODES, Forms
+from hgtools.runner import CODES, Forms, workdir
 
 FORMS = Forms("impact")
 G = 9.81
@@ -304,10 +304,7 @@ def run(code: str = "lammps", width_rows: int = 25, depth: float = 0.036, d: flo
     the same deck) unless `bed` names one already settled (from any code, same geometry and
     parameters), then the impact from it (hybrid: dem_3d.lmp + hybrid_3d.lmp coupled,
     hybrid_vars its extra variables). width_rows: the box side in floor rows (1.2 d each)."""
-    out = (Path(out) if out else Path.cwd() / f"dem_impact_{code}").resolve()
-    out.mkdir(parents=True, exist_ok=True)
-    for f in ("final.dump", "initial.dump", "traj.dat"):
-        (out / f).unlink(missing_ok=True)
+    out = workdir(out, f"dem_impact_{code}", ("final.dump", "initial.dump", "traj.dat"))
     extra = {k: str(v) for k, v in (extra_vars or {}).items()}
     rho = float(extra.get("rho", 2500.0))
     mu = float(extra.get("mu", 0.5))
@@ -324,8 +321,7 @@ def run(code: str = "lammps", width_rows: int = 25, depth: float = 0.036, d: flo
         done.check("to settle the bed", bed)
         prep_wall = done.wall
     variables.update(prep=0, impact=1, bed=Path(bed).resolve())
-    done = FORMS.run(code, variables, out / "log.txt", {k: str(v) for k, v in (hybrid_vars or {}).items()},
-                     np_=np_, exe=exe, timeout=timeout)
+    done = FORMS.run(code, variables, out / "log.txt", hybrid_vars, np_=np_, exe=exe, timeout=timeout)
     log = done.check("in the impact", out / "final.dump")
     res = analyse(out, log, code, geo["width"], depth, d, dp, rhop, speed, mu, rho, done.wall)
     res.prep_wall_time = prep_wall

@@ -28,10 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
-from dem3d_collapse import pour_lattice
 from hgtools import cli, logs
-from hgtools.grains import FLOOR_SPACING, LATTICE_SPACING, jittered, max_overlap, read_dump, slab_floor, write_spheres
-from hgtools.runner import CODES, Forms
+from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, jittered, max_overlap, pour_lattice, read_dump,
+                            slab_floor, write_spheres)
+from hgtools.runner import CODES, Forms, workdir
 
 FORMS = Forms("plough")
 G = 9.81
@@ -215,11 +215,7 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
     if thickness_d is None:
         thickness_d = HYBRID_ROWS if code == "hybrid" else 4
     drag = drag if drag is not None else 3 * depth
-    # absolute: the codes run in it (cwd), and the paths they are given must hold there too
-    out = (Path(out) if out else Path.cwd() / f"plough_{code}").resolve()
-    out.mkdir(parents=True, exist_ok=True)
-    for f in ("final.dump", "settled.dump", "inserted.dump", "drag.dat"):
-        (out / f).unlink(missing_ok=True)
+    out = workdir(out, f"plough_{code}", ("final.dump", "settled.dump", "inserted.dump", "drag.dat"))
     geo = geometry(depth, d, drag, topfac)
     data = write_data(out / "grains.data", bedh, depth, d, geo["length"], geo["xblade"], thickness_d,
                       topfac, seed)

@@ -56,7 +56,7 @@ from hgtools import cli, logs
 from hgtools.cache import Settled
 from hgtools.discharge import Discharge, measure, walls_far
 from hgtools.grains import covered_fraction, dump_positions, max_overlap, read_dump
-from hgtools.runner import Forms
+from hgtools.runner import Forms, workdir
 
 FORMS = Forms("silo", lammps="dem_2d.lmp", liggghts=None, hybrid="hybrid_2d.lmp")
 DECK = FORMS.deck("lammps")
@@ -133,8 +133,7 @@ def run_dem_silo(width: float = 0.1, height: float = 0.15, orifice: float = 0.02
     twin with input_decks/silo/hybrid_2d.lmp: adaptive zones) with these extra variables
     (hcell, hevery, hadapt, hdepth, hband, hyoungs, hphi); the settled silo is the DEM one."""
     extra = {k: str(v) for k, v in (extra_vars or {}).items()}
-    out = (Path(out) if out else Path.cwd() / f"dem_silo_w{width:g}_D{orifice:g}").resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    out = workdir(out, f"dem_silo_w{width:g}_D{orifice:g}")
     cache = settled(width, height, d, seed, extra, cache_dir)
     prep = not (use_cache and cache.cached(with_info=True))
     common = dict(width=width, height=height, orifice=orifice, d=d, seed=seed, out=str(out), **extra)
@@ -144,9 +143,7 @@ def run_dem_silo(width: float = 0.1, height: float = 0.15, orifice: float = 0.02
         target = out / "settled.restart"
         done = FORMS.run("lammps", dict(common, settled=str(target), prep=1, discharge=0), out / "log.prep.lammps",
                          **kw)
-        m = SETTLED_RE.search(done.check("to prepare the silo", target))
-        if not m:
-            raise done.failed("to prepare the silo")
+        m = done.match("to prepare the silo", SETTLED_RE, target)
         info = dict(settle_time=float(m.group(1)), grains=int(m.group(2)), mass=float(m.group(3)),
                     trimmed_mass=float(m.group(4)), below=int(m.group(5)), wall_time=done.wall)
         if use_cache:
@@ -155,7 +152,7 @@ def run_dem_silo(width: float = 0.1, height: float = 0.15, orifice: float = 0.02
         target, info = cache.path, cache.info()
     code = "lammps" if hybrid_vars is None else "hybrid"
     done = FORMS.run(code, dict(common, settled=str(target), prep=0, tdis=tdis, fstop=fstop), out / "log.lammps",
-                     {k: str(v) for k, v in (hybrid_vars or {}).items()}, **kw)
+                     hybrid_vars, **kw)
     text = done.check("in the discharge", out / "discharge.dat", marker="DEM silo end:")
     rho = float(extra.get("rho", 2500))
     mo = OPEN_RE.search(text)

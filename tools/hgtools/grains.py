@@ -34,6 +34,23 @@ def jittered(rng: np.random.Generator, sites: np.ndarray, d: float) -> tuple[np.
     return grains, rng.uniform(0.9 * d, 1.1 * d, len(grains))
 
 
+def pour_lattice(length: float, W: float, d: float, volume: float) -> tuple:
+    """The loose pouring lattice of a slab (periodic or walled) of thickness W: x sites from
+    `margin` to length - margin at LATTICE_SPACING d, z sites filling W (no two closer than
+    the largest grain plus the jitter), and the number of grains that fill `volume` at
+    PHI_EST, 8 % extra to trim. Returns (xs, zs, margin, need)."""
+    s = LATTICE_SPACING * d
+    nz = max(1, int(round(W / s)))
+    sz = W / nz
+    if sz < 1.1 * d + 2 * LATTICE_JITTER * d:
+        nz -= 1
+        sz = W / nz
+    margin = pour_margin(d)
+    xs = np.arange(margin, length - margin + 1e-12, s)
+    zs = (np.arange(nz) + 0.5) * sz
+    return xs, zs, margin, grains_needed(volume, d)
+
+
 def slab_floor(x_end: float, thickness_d: int, d: float) -> np.ndarray:
     """Frozen floor spheres of a slab: a square lattice of FLOOR_SPACING d in x (from -2 d up to
     x_end) and z (thickness_d rows), centres at y = -d/2."""

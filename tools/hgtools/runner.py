@@ -17,6 +17,7 @@ hybrid include), and `Forms.run(code, ...)` picks the deck and adds the hybrid t
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -60,6 +61,24 @@ class Run:
                 or (marker is not None and marker not in text)):
             raise self.failed(what)
         return text
+
+    def match(self, what: str, pattern: re.Pattern, *outputs: Path) -> re.Match:
+        """check(), and the match of `pattern` in the log (RunFailed naming `what` without one)."""
+        m = pattern.search(self.check(what, *outputs))
+        if not m:
+            raise self.failed(what)
+        return m
+
+
+def workdir(out: str | Path | None, default: str, stale: tuple = ()) -> Path:
+    """A run's output directory, absolute (the codes run in it, and the paths they are given must
+    hold there too): `out`, or `default` in the current directory; made, with the `stale` files a
+    former run left removed (a run must not be judged by them)."""
+    out = (Path(out) if out else Path.cwd() / default).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    for name in stale:
+        (out / name).unlink(missing_ok=True)
+    return out
 
 
 def command(code: str, deck: Path, variables: dict, log: Path, np_: int = 1, exe: str | None = None) -> list:
