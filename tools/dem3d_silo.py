@@ -45,7 +45,7 @@ import numpy as np
 
 from hgtools import cli, logs
 from hgtools.cache import Settled
-from hgtools.discharge import Discharge, measure, walls_far
+from hgtools.discharge import Discharge, measure
 from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, covered_fraction, grains_needed, jittered, max_overlap,
                             pour_margin, read_data, write_spheres)
 from hgtools.runner import CODES, Forms, workdir
@@ -128,24 +128,17 @@ class Silo3dResult(Discharge):
     floor_mass: float              # mass of the frozen floor spheres (type 2), kg
     prep_code: str
     params: dict = field(default_factory=dict)
-
-    @property
-    def walls_far(self) -> bool:
-        return walls_far(self.width, self.orifice_eff, self.d)
+    outlet = property(lambda self: self.orifice_eff)
 
     def summary(self) -> str:
         return (f"{self.code}: 3D silo W = {self.width:g} m, H = {self.height:g} m, D = {self.orifice:g} m "
                 f"(inscribed {self.orifice_eff:.4g} m, D/d = {self.orifice_eff / self.d:.3g}), d = {self.d:g} m: "
                 f"{self.grains} grains, {self.mass0:.4g} kg, packing fraction {self.packing:.4f}\n"
-                f"  preparation ({self.prep_code}): {self.settle_time:.3f} s simulated, wall "
-                f"{self.prep_wall_time:.1f} s{' (this run)' if self.prepared else ' (cached)'}; discharge: "
-                f"{self.end_time:.3f} s simulated, {self.steps} steps, wall {self.wall_time:.1f} s\n"
-                + self.rate_line("kg/s") +
+                + self.times_line(f" ({self.prep_code})") + self.rate_line("kg/s") +
                 f"  3D Beverloo C = {BEVERLOO_C:g}, k = {BEVERLOO_K:g}: {self.beverloo:.4g} kg/s; "
                 f"measured/Beverloo = {self.ratio:.3f}"
                 f"{'' if self.walls_far else ' (silo narrower than W > D + 30 d)'}\n"
-                f"  discharged {100 * self.discharged_fraction:.1f} %, mass balance {self.mass_balance:.1e}, "
-                f"lost {self.lost}; {self.settled_below} grains below the lid level after settling; "
+                + self.balance_text() + f"{self.settled_below} grains below the lid level after settling; "
                 f"max overlap/d settled {self.max_overlap_initial:.4f}")
 
 

@@ -54,7 +54,7 @@ import numpy as np
 
 from hgtools import cli, logs
 from hgtools.cache import Settled
-from hgtools.discharge import Discharge, measure, walls_far
+from hgtools.discharge import Discharge, measure
 from hgtools.grains import covered_fraction, dump_positions, max_overlap, read_dump
 from hgtools.runner import Forms, workdir
 
@@ -77,22 +77,15 @@ def beverloo_2d(rho_b: float, orifice: float, d: float, c: float = BEVERLOO_C2D,
 class SiloResult(Discharge):
     below_at_open: int             # grains below the floor when the orifice opened (must be 0)
 
-    @property
-    def walls_far(self) -> bool:
-        return walls_far(self.width, self.orifice, self.d)
-
     def summary(self) -> str:
         return (f"DEM silo W = {self.width:g} m, H = {self.height:g} m, D = {self.orifice:g} m "
                 f"(D/d = {self.orifice / self.d:.3g}), d = {self.d:g} m: {self.grains} grains, "
                 f"{self.mass0:.4g} kg/m, packing fraction {self.packing:.4f}\n"
-                f"  preparation: {self.settle_time:.3f} s simulated, wall {self.prep_wall_time:.1f} s"
-                f"{' (this run)' if self.prepared else ' (cached)'}; discharge: {self.end_time:.3f} s "
-                f"simulated, {self.steps} steps, wall {self.wall_time:.1f} s\n" + self.rate_line("kg/s/m") +
+                + self.times_line() + self.rate_line("kg/s/m") +
                 f"  2D Beverloo C = {BEVERLOO_C2D:.3f}, k = {BEVERLOO_K:g}: {self.beverloo:.4g} kg/s/m; "
                 f"measured/Beverloo = {self.ratio:.3f}"
                 f"{'' if self.walls_far else ' (silo narrower than W > D + 30 d: walls may raise the rate)'}\n"
-                f"  discharged {100 * self.discharged_fraction:.1f} %, mass balance {self.mass_balance:.1e}, "
-                f"lost {self.lost}; closed orifice: {self.settled_below} grains below the floor after settling, "
+                + self.balance_text() + f"closed orifice: {self.settled_below} grains below the floor after settling, "
                 f"{self.below_at_open} at the opening; max overlap/d settled {self.max_overlap_initial:.4f}")
 
 

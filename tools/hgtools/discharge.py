@@ -106,6 +106,24 @@ class Discharge:
         """|rate_first - rate_second| / rate."""
         return abs(self.rate_first - self.rate_second) / self.rate
 
+    @property
+    def outlet(self) -> float:
+        """The orifice as the grains see it (the 3D silo: the lattice hole's inscribed diameter)."""
+        return self.orifice
+
+    @property
+    def walls_far(self) -> bool:
+        return walls_far(self.width, self.outlet, self.d)
+
+    def times_line(self, prep: str = "") -> str:
+        return (f"  preparation{prep}: {self.settle_time:.3f} s simulated, wall {self.prep_wall_time:.1f} s"
+                f"{' (this run)' if self.prepared else ' (cached)'}; discharge: {self.end_time:.3f} s "
+                f"simulated, {self.steps} steps, wall {self.wall_time:.1f} s\n")
+
+    def balance_text(self) -> str:
+        return (f"  discharged {100 * self.discharged_fraction:.1f} %, mass balance {self.mass_balance:.1e}, "
+                f"lost {self.lost}; ")
+
     def rate_line(self, unit: str) -> str:
         t_a, t_b = self.window
         return (f"  rate W = {self.rate:.4g} {unit} (fit {t_a:.3f}..{t_b:.3f} s; halves {self.rate_first:.4g}, "
