@@ -36,9 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import re
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -50,11 +48,10 @@ import tomli_w
 from tqdm import tqdm
 
 from hgtools.logs import thermo_rows
-from hgtools.runner import run_deck
+from hgtools.runner import run_deck, run_mpm
 from mpm_results import load_run
 
 REPO = Path(__file__).resolve().parent.parent
-SOLVER = REPO / "build" / "mpm_solver" / "mpm_solver"
 GRAIN_DECK = REPO / "input_decks" / "stability" / "grain_bed_2d.lmp"
 G = 9.81
 MASS_TOL = 1e-12
@@ -216,10 +213,8 @@ def run_continuum(name, what, expected, build, message, checks, out_dir: Path, t
     scene = build()
     path = work / "scene.toml"
     path.write_text(tomli_w.dumps(scene))
-    t0 = time.monotonic()
-    proc = subprocess.run([str(SOLVER), str(path), "--output", str(work / "output"), "--quiet", "--threads", "1"],
-                          capture_output=True, text=True, timeout=timeout)
-    out.wall = time.monotonic() - t0
+    done = run_mpm(path, "--output", work / "output", "--threads", "1", timeout=timeout)
+    proc, out.wall = done.proc, done.wall
     text = proc.stdout + proc.stderr
     if expected == "stopped":
         stopped(out, text, message, proc.returncode == 0)

@@ -9,7 +9,8 @@ Codes:
     liggghts  Debian's LIGGGHTS 3.8 (`liggghts`, or `exe`), with -nocite
     hybrid    lmp_hybrid + mpm_solver --coupled in one MPMD job (tools/hybrid_launch.py composes it)
 All run with `-log LOG -screen none -var NAME VALUE ...`, more than one rank through
-tools/mpirun.sh, in the log's directory unless `cwd` says otherwise.
+tools/mpirun.sh, in the log's directory unless `cwd` says otherwise. `run_mpm` runs mpm_solver
+alone on a scene file (its output is the log).
 
 A scene with twin decks describes them once as `Forms` (its LAMMPS deck, the LIGGGHTS twin, the
 hybrid include), and `Forms.run(code, ...)` picks the deck and adds the hybrid twin's variables.
@@ -27,6 +28,7 @@ from pathlib import Path
 
 TOOLS = Path(__file__).resolve().parent.parent
 REPO = TOOLS.parent
+SOLVER = Path(os.environ.get("HYBRID_BUILD_DIR", REPO / "build")) / "mpm_solver" / "mpm_solver"
 CODES = ("lammps", "liggghts", "hybrid")
 EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
 
@@ -42,10 +44,12 @@ class Run:
     cmd: list
     proc: subprocess.CompletedProcess
     wall: float                      # s
-    log: Path
+    log: Path | None                 # None: the program's output is its log (mpm_solver)
 
     def text(self) -> str:
         """The log (empty if the run wrote none)."""
+        if self.log is None:
+            return self.proc.stdout + self.proc.stderr
         return self.log.read_text(errors="replace") if self.log.exists() else ""
 
     def failed(self, what: str) -> RunFailed:
@@ -107,6 +111,16 @@ def run_deck(code: str, deck: Path, variables: dict, log: Path, np_: int = 1, ex
     t0 = time.time()
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd or log.parent, env=env)
     return Run(code, cmd, proc, time.time() - t0, log)
+
+
+def run_mpm(scene: Path, *args: str, threads: int | None = None, timeout: float = 3600,
+            cwd: Path | None = None) -> Run:
+    """Runs mpm_solver on a scene file (`--quiet`, then `args`) with `threads` OpenMP threads."""
+    cmd = [str(SOLVER), str(scene), "--quiet", *map(str, args)]
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads)) if threads else None
+    t0 = time.time()
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd, env=env)
+    return Run("mpm_solver", cmd, proc, time.time() - t0, None)
 
 
 @dataclass(frozen=True)
