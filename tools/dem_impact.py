@@ -139,11 +139,6 @@ def uehara_depth(rho_p: float, rho_b: float, dp: float, h: float, mu: float) -> 
     return dpen
 
 
-def read_traj(path: Path) -> np.ndarray:
-    """traj.dat: rows t, z_p, vz_p, fz_p, KE_p, E_mobile."""
-    return np.loadtxt(path, comments="#", ndmin=2)
-
-
 def fit_drag(depth: np.ndarray, v: np.ndarray, force: np.ndarray, mp: float, d: float,
              nbins: int = 20) -> dict:
     """Katsuragi-Durian F = m g + k z + m v^2/d1 by least squares on depth bins of the
@@ -242,7 +237,7 @@ def analyse(out: Path, log: str, code: str, width: float, depth: float, d: float
             rhop: float, v0: float, mu: float, rho: float, wall: float) -> ImpactResult:
     initial = read_dump(out / "initial.dump")
     final = read_dump(out / "final.dump")
-    tr = read_traj(out / "traj.dat")
+    tr = logs.records(out / "traj.dat")    # t, z_p, vz_p, fz_p, KE_p, E_mobile
     t, zp, vz, fz, kp, em = (tr[:, k] for k in range(6))
     mend = re.search(r"^IMPACT end: t = (\S+) s after the launch, projectile z = (\S+) m, speed (\S+) m/s "
                      r"\(rest below (\S+)\), atoms (\d+) \(at launch (\d+)\)", log, re.M)

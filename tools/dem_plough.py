@@ -104,12 +104,6 @@ def write_data(path: Path, bedh: float, depth: float, d: float, length: float, x
     return dict(thickness=W, poured=len(grains), floor=len(floor), blade=len(blade), ytop=ytop)
 
 
-def read_drag(path: Path) -> np.ndarray:
-    """drag.dat of fix ave/time: columns step, x_blade, F_x, F_y."""
-    rows = [ln.split() for ln in Path(path).read_text().splitlines() if ln.strip() and not ln.startswith("#")]
-    return np.array(rows, dtype=float).reshape(-1, 4)
-
-
 def bed_state(dump: dict, bedh: float, length: float, d: float, width: float) -> dict:
     """Packing fraction (grain volume over box volume, grains counted by their centres) of the
     settled bed away from the walls, floor and surface (2 d), and its mean surface height (the
@@ -232,7 +226,7 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
     lower_edge = float((inserted["y"][bl] - inserted["radius"][bl]).min())
     depth_actual = bed["surface"] - lower_edge
     x0 = float(inserted["x"][bl].mean())
-    rec = read_drag(out / "drag.dat")
+    rec = logs.records(out / "drag.dat")    # fix ave/time: step, x_blade, F_x, F_y
     steady = steady_drag(rec, x0, drag)
     rho = float((extra_vars or {}).get("rho", 2500))
     rankine = rankine_drag(bed["packing"] * rho, depth_actual) * data["thickness"]

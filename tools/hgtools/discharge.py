@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hgtools.logs import records
+
 TRANSIENT = 0.1              # s after the opening before the steady window starts
 FIT_FMAX = 0.5               # the steady window ends when this fraction of the mass has left
 
@@ -38,17 +40,12 @@ def fit_rate(t: np.ndarray, m_out: np.ndarray, mass0: float, transient: float = 
                 fit_rel=rms / max(ms[-1] - ms[0], 1e-300), window=(float(ts[0]), float(ts[-1])))
 
 
-def read_discharge(path: Path) -> np.ndarray:
-    """discharge.dat as an array of rows t, M_in, M_fall, M_del, N_in, N_fall, N_del, N_all."""
-    return np.loadtxt(path, comments="#", ndmin=2)
-
-
 def measure(path: Path, mass0: float) -> tuple[dict, np.ndarray]:
     """The figures of a discharge record (path: discharge.dat, rows t, M_in, M_fall, M_del, N_in,
     N_fall, N_del, N_all) for a silo that held mass0: the records, the steady rate of what left
     (M_fall + M_del: in a hybrid twin part of what is inside is continuum), the fraction
     discharged and the mass balance; and the counts N_in, N_fall, N_del, N_all (columns)."""
-    rec = read_discharge(path)
+    rec = records(path)
     t, m_in, m_fall, m_del = rec[:, 0], rec[:, 1], rec[:, 2], rec[:, 3]
     figures = dict(times=t.tolist(), m_in=m_in.tolist(), m_fall=m_fall.tolist(), m_del=m_del.tolist(),
                    end_time=float(t[-1]), discharged_fraction=float((m_fall[-1] + m_del[-1]) / mass0),

@@ -1,5 +1,5 @@
 """The one reader of LAMMPS (and LIGGGHTS) logs: thermo tables, loop times, the figures a deck
-prints on its own lines, and fix hybrid/mpm's energy ledger.
+prints on its own lines, fix hybrid/mpm's energy ledger, and the decks' record files.
 
 The ledger is the fix's vector entries 19-29 (docs/fix_hybrid_mpm.md, "Energy ledger"); decks
 that print it put all eleven in their thermo_style.
@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+
+import numpy as np
 
 LEDGER = {19: "total", 20: "grains", 21: "continuum", 22: "DEM steps", 23: "continuum steps",
           24: "agreement (grains)", 25: "agreement (continuum)", 26: "support force", 27: "rezones (grains)",
@@ -71,6 +73,12 @@ def number(pattern: str, text: str) -> float:
 def lines(text: str, *prefixes: str) -> str:
     """A log's own lines starting with one of `prefixes` (the deck's report lines)."""
     return "\n".join(ln for ln in text.splitlines() if ln.startswith(prefixes))
+
+
+def records(path: str | Path) -> np.ndarray:
+    """A deck's record file (fix print or fix ave/time: # comment lines, then rows of numbers) as
+    an array of rows."""
+    return np.loadtxt(path, comments="#", ndmin=2)
 
 
 CONTACT = ("kn", "kt", "gamma_n", "gamma_t", "gamma_n(wall)", "gamma_t(wall)")
