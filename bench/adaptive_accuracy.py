@@ -13,7 +13,7 @@ Scenes and measures:
 - collapse_3d, silo_3d (tools/dem3d_collapse.py, dem3d_silo.py, code hybrid): runout and rate
   at the default numerics; their noise floor is LIGGGHTS against LAMMPS from the same grains.
 Every hybrid row also gives the energy ledger's closure (largest residual over the largest
-energy figure, tools/lammps_log.py).
+energy figure, tools/hgtools/logs.py).
 
 Usage: bench/adaptive_accuracy.py [--np 2] [--quick] [--scenes collapse_2d,silo_2d,...]
                                   [--exchanges 1,5,10,20] [--oracles 100,300,1000]
@@ -37,7 +37,7 @@ from collapse_report import kinetic_energy_error, thermo_kinetic_energy  # noqa:
 from column_collapse import combine_surfaces, points_surface, surface_error  # noqa: E402
 from dem_collapse import run as run_collapse, run_from_settled  # noqa: E402
 from dem_silo import run_dem_silo  # noqa: E402
-from lammps_log import ledger_closure, thermo_rows  # noqa: E402
+from hgtools.logs import ledger_closure, thermo_rows  # noqa: E402
 from mpm_results import load_run  # noqa: E402
 
 D = 0.002

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from lammps_log import ledger, ledger_closure
-from test_coupled_physics import run_deck, thermo_rows
+from hgtools.logs import ledger, ledger_closure, thermo_rows, thermo_tables
+from test_coupled_physics import run_deck
 
 DECKS = {"2d": REPO / "input_decks" / "hybrid" / "adaptive_2d.lmp",
          "3d": REPO / "input_decks" / "hybrid" / "adaptive_3d.lmp"}
@@ -50,7 +50,7 @@ def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid
     later = counts[1:]
     assert sum(c["grains_made"] for c in later) > 100, later             # enrichment
     assert sum(c["grains_to_points"] + c["hybrid"] for c in later) > 100, later  # homogenisation
-    rows = thermo_rows(log)
+    rows = thermo_tables(log)[-1]
     mass = rows[0]["f_couple[8]"]
     # scales of what cancels: mass times the grains' speed (0.05 m/s), and times the box size
     box = 0.2 if dim == "2d" else 0.16
@@ -200,8 +200,7 @@ def test_discrete_zone_follows_the_free_surface_of_a_collapsing_column(tmp_path,
     assert dist.min() >= 2 * dx
     # the energy ledger closes over the collapse (the deck prints it at every thermo row); the
     # DEM's contacts dissipate most of the released energy, and the coupling never adds energy
-    from lammps_log import thermo_rows as log_rows
-    table = log_rows(tmp_path / "hybrid" / "log.lammps", require="f_couple[29]")
+    table = thermo_rows(tmp_path / "hybrid" / "log.lammps", require="f_couple[29]")
     end = assert_ledger_closes(table)
     released = ledger(table[0])["total"] - end["total"]
     assert released > 0

@@ -17,6 +17,7 @@ import pytest
 
 from conftest import BUILD, REPO
 import mpm_results
+from hgtools.logs import thermo_tables
 
 LAUNCH = REPO / "tools" / "hybrid_launch.py"
 MOMENTUM_DECK = REPO / "input_decks" / "hybrid" / "momentum_2d.lmp"
@@ -37,21 +38,6 @@ def run_deck(tmp_path: Path, deck: Path, np_: int, *lammps_args: str, timeout: f
                           cwd=tmp_path)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     return log.read_text()
-
-
-def thermo_rows(log: str) -> list[dict]:
-    """The thermo table of the (last) run as a list of {column: value}."""
-    lines = log.splitlines()
-    start = max(i for i, ln in enumerate(lines) if ln.split()[:1] == ["Step"])
-    header = lines[start].split()
-    rows = []
-    for ln in lines[start + 1:]:
-        if ln.startswith("Loop time"):
-            break
-        parts = ln.split()
-        if len(parts) == len(header) and re.match(r"^-?\d", parts[0]):  # not a message line
-            rows.append(dict(zip(header, map(float, parts))))
-    return rows
 
 
 DECKS = {  # deck, points made from grains, hybrid grains, momentum components
@@ -75,7 +61,7 @@ def test_linear_momentum_of_grains_plus_points_is_conserved(tmp_path, hybrid_pro
     assert m, log
     # the random velocities depend on the rank count, so grains near cell faces may differ
     assert int(m.group(1)) == n_points and abs(int(m.group(2)) - n_hybrid) <= 0.05 * n_hybrid
-    rows = thermo_rows(log)
+    rows = thermo_tables(log)[-1]
     assert len(rows) == nsteps // 10 + 1 and rows[-1]["Step"] == nsteps
     first = rows[0]
     assert first["f_couple[3]"] == 0  # step 0: no points yet
@@ -158,7 +144,7 @@ def test_settled_hybrid_column_stays_at_rest_with_continuous_vertical_stress(tmp
     deck = tmp_path / "deck.lmp"
     deck.write_text(COLUMN_DECK.read_text().replace("wall slip output", f"wall slip support {support} output"))
     log = run_deck(tmp_path, deck, 2, "-var", "nsteps", "10000")
-    rows = [r for r in thermo_rows(log) if r["Step"] > 0]
+    rows = [r for r in thermo_tables(log)[-1] if r["Step"] > 0]
     assert rows[-1]["Step"] == 10000 and rows[-1]["f_couple[3]"] == 240
     width, g, d, dx = 0.04, 9.81, 0.002, 0.004
     # energy: tiny against the column's potential energy scale (the settled packing alone keeps
@@ -252,8 +238,8 @@ def test_restart_continues_the_coupled_run(tmp_path, hybrid_programs):
     (restarted / "deck.lmp").write_text(deck_b)
     log_b = run_deck(restarted, restarted / "deck.lmp", 2)
     assert "MPM state loaded from restart.bin.mpm.h5 (64 material points)" in log_b
-    a = [r for r in thermo_rows(log_a) if r["Step"] == 60][-1]
-    b = [r for r in thermo_rows(log_b) if r["Step"] == 60][-1]
+    a = [r for r in thermo_tables(log_a)[-1] if r["Step"] == 60][-1]
+    b = [r for r in thermo_tables(log_b)[-1] if r["Step"] == 60][-1]
     scale = a["f_couple[8]"] * 0.05
     for col in ("f_couple[9]", "f_couple[10]"):
         assert abs(a[col] - b[col]) <= 1e-13 * scale, (col, a[col], b[col])
@@ -306,7 +292,7 @@ def test_conversion_keeps_mass_momentum_and_angular_momentum_exactly(tmp_path, h
     deck = tmp_path / "deck.lmp"
     deck.write_text(text)
     log = run_deck(tmp_path, deck, 2, "-var", "nsteps", "2", "-var", "every", "10")
-    rows = thermo_rows(log)
+    rows = thermo_tables(log)[-1]
     before, after = rows[0], rows[1]
     assert before["f_couple[3]"] == 0 and after["f_couple[3]"] > 0 and after["Step"] == 1
     assert after["f_couple[8]"] == pytest.approx(before["f_couple[8]"], rel=1e-14)
@@ -358,7 +344,7 @@ def test_new_points_stress_is_that_of_their_grains_when_another_fix_reorders_ato
         run_dir.mkdir()
         (run_dir / "deck.lmp").write_text(deck_text)
         log = run_deck(run_dir, run_dir / "deck.lmp", 1, "-var", "nsteps", "1")
-        rows = thermo_rows(log)
+        rows = thermo_tables(log)[-1]
         assert rows[-1]["Step"] == 1 and rows[-1]["f_couple[3]"] > 0
         assert rows[-1]["f_evap"] >= 20  # the top rows went at step 1
         atoms[name] = rows[-1]["Atoms"]

@@ -13,7 +13,7 @@ floor) and writes it as a data file; each form discharges that same packing (no 
 histories in data files: all three start from the same state) until half of the mass has left.
 
 Measured (this machine; discharge rate W = slope of the discharged mass from 0.1 s after the
-opening until half of the mass has left, tools/dem_silo.fit_rate):
+opening until half of the mass has left, tools/hgtools/discharge.fit_rate):
   test scene (H = 20 d, seed 2024, 2 ranks): 4740 grains, 0.0501 kg, packing fraction 0.591;
     LAMMPS 0.03346 kg/s, LIGGGHTS 0.03348 kg/s (+0.0 %), halves within 4 %, 1.38 x Beverloo;
     largest overlap 2.0 % of d; mass balance ~1e-14 in both codes.

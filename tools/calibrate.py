@@ -40,11 +40,12 @@ from pathlib import Path
 
 import numpy as np
 
+from hgtools.grains import write_spheres
+from hgtools.runner import run_deck
+
 REPO = Path(__file__).resolve().parent.parent
 DECK = REPO / "input_decks" / "calibration" / "simple_shear.lmp"
 MATERIALS = REPO / "input_decks" / "materials"
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from sphere_data import write_spheres  # noqa: E402
 
 # The reference grain of the runs (SI): results are made dimensionless with these.
 D_REF, RHO_REF, P0_REF = 1.0e-3, 2500.0, 100.0
@@ -116,20 +117,17 @@ class Calibration:
 # ----------------------------------------------------------------------------- running
 def lammps(stage: str, law: ContactLaw, run_dir: Path, lmp: str, timeout: float, **extra) -> float:
     """Runs one stage of the calibration deck in run_dir; returns its wall time."""
-    args = [lmp, "-in", str(DECK), "-log", str(run_dir / f"{stage}.log"), "-screen", "none"]
-    for k, v in {**law.deck_vars(), "stage": stage, "out": str(run_dir), **extra}.items():
-        args += ["-var", k, str(v)]
-    t0 = time.time()
+    log = run_dir / f"{stage}.log"
     try:
-        proc = subprocess.run(args, capture_output=True, text=True, timeout=timeout, cwd=run_dir)
+        done = run_deck("lammps", DECK, {**law.deck_vars(), "stage": stage, "out": str(run_dir), **extra}, log,
+                        exe=lmp, timeout=timeout)
     except subprocess.TimeoutExpired:
         raise SystemExit(f"calibrate: the {stage} run in {run_dir} took more than {timeout:.0f} s "
                          f"(raise --timeout, or use fewer grains)")
-    if proc.returncode != 0:
-        log = run_dir / f"{stage}.log"
-        tail = "\n".join((log.read_text() if log.exists() else proc.stdout + proc.stderr).splitlines()[-15:])
-        raise SystemExit(f"calibrate: the {stage} run failed (exit {proc.returncode}), {log}:\n{tail}")
-    return time.time() - t0
+    if done.proc.returncode != 0:
+        tail = "\n".join((done.text() or done.proc.stdout + done.proc.stderr).splitlines()[-15:])
+        raise SystemExit(f"calibrate: the {stage} run failed (exit {done.proc.returncode}), {log}:\n{tail}")
+    return done.wall
 
 
 def chunks(path: Path) -> np.ndarray:

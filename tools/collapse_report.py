@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
@@ -42,16 +41,16 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from column_collapse import (ColumnCollapse, combine_surfaces, normalised_runout, points_surface,  # noqa: E402
+from column_collapse import (ColumnCollapse, combine_surfaces, normalised_runout, points_surface,
                              published_runout_range, surface_error)
-from calibrate import describe_material  # noqa: E402
-from dem_collapse import run as run_dem, run_from_settled  # noqa: E402
-from mpm_results import load_run  # noqa: E402
-from lammps_log import thermo_rows  # noqa: E402
+from calibrate import describe_material
+from dem_collapse import run as run_dem, run_from_settled
+from hgtools import runner
+from hgtools.logs import thermo_rows
+from mpm_results import load_run
 
 REPO = Path(__file__).resolve().parent.parent
-SOLVER = REPO / "build" / "mpm_solver" / "mpm_solver"
+SOLVER = runner.SOLVER
 D = 0.002                 # grain diameter, m
 ALL_RUNS = ["dem", "dem_seed", "hybrid_fixed", "hybrid_adaptive", "hybrid_adaptive_d2", "mpm_drucker_prager",
             "mpm_mu_i"]
@@ -126,10 +125,9 @@ def run_mpm(model: str, aspect: float, width: float, cell: float, out: Path, thr
     work = out / f"mpm_{model}"
     path = scene.write(work)
     summary = work / "summary.json"
-    start = time.perf_counter()
-    subprocess.run([str(SOLVER), str(path), "--summary", str(summary), "--quiet"], check=True,
-                   env=dict(os.environ, OMP_NUM_THREADS=str(threads)), stdout=subprocess.DEVNULL)
-    wall = time.perf_counter() - start
+    done = runner.run_mpm(path, "--summary", summary, threads=threads)
+    done.check("on the column", summary)
+    wall = done.wall
     frames = load_run(work / "output")
     final = frames.frame(-1)
     figures = json.loads(summary.read_text())

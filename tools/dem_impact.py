@@ -43,31 +43,20 @@ that is how tests/test_dem_impact.py compares the three forms on one packing.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import re
-import shutil
-import subprocess
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from dem3d_collapse import (EXECUTABLES, FLOOR_SPACING, LATTICE_JITTER, LATTICE_SPACING,  # noqa: E402
-                            PHI_EST, _num)
-from dem_collapse import deck_vars, max_overlap, print_result, read_dump, run_lammps  # noqa: E402
-from sphere_data import write_spheres  # noqa: E402
+from hgtools import cli, logs
+from hgtools.grains import FLOOR_SPACING, LATTICE_SPACING, grains_needed, jittered, max_overlap, pour_margin, \
+    read_dump, write_spheres
+from hgtools.runner import CODES, Forms, workdir
 
-REPO = Path(__file__).resolve().parent.parent
-DECKS = {
-    "lammps": REPO / "input_decks" / "impact" / "dem_3d.lmp",
-    "liggghts": REPO / "input_decks" / "impact" / "liggghts_3d.in",
-    "hybrid": REPO / "input_decks" / "impact" / "dem_3d.lmp",
-}
-HYBRID_DECK = REPO / "input_decks" / "impact" / "hybrid_3d.lmp"
+FORMS = Forms("impact")
 G = 9.81
 UEHARA_C = 0.14              # Uehara et al. 2003, d = (0.14/mu) (rho_p/rho_b)^(1/2) D^(2/3) H^(1/3)
 SURFACE_BIN = 2.0            # surface columns, in d
@@ -90,19 +79,13 @@ def write_data(path: Path, width_rows: int, depth: float, d: float, dp: float, s
     f = (np.arange(width_rows) + 0.5) * fs
     FX, FY = np.meshgrid(f, f, indexing="ij")
     floor = np.column_stack([FX.ravel(), FY.ravel(), np.full(FX.size, -0.5 * d)])
-    margin = 0.55 * 1.1 * d + LATTICE_JITTER * d
+    margin = pour_margin(d)
     n = int(math.floor((width - 2 * margin) / (LATTICE_SPACING * d))) + 1
-    s = (width - 2 * margin) / (n - 1)
-    xs = margin + np.arange(n) * s
-    vmean = math.pi / 6 * d ** 3 * 1.01          # <D^3> for D uniform in [0.9, 1.1] d
-    need = int(math.ceil(1.08 * PHI_EST * width * width * depth / vmean))
-    layers = int(math.ceil(need / (n * n)))
-    sz = LATTICE_SPACING * d
-    zs = 0.6 * d + np.arange(layers) * sz
+    xs = margin + np.arange(n) * ((width - 2 * margin) / (n - 1))
+    need = grains_needed(width * width * depth, d)
+    zs = 0.6 * d + np.arange(int(math.ceil(need / (n * n)))) * LATTICE_SPACING * d
     X, Y, Z = np.meshgrid(xs, xs, zs, indexing="ij")
-    grains = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
-    grains += rng.uniform(-LATTICE_JITTER * d, LATTICE_JITTER * d, grains.shape)
-    diam = rng.uniform(0.9 * d, 1.1 * d, len(grains))
+    grains, diam = jittered(rng, np.column_stack([X.ravel(), Y.ravel(), Z.ravel()]), d)
     zp = zs[-1] + 0.6 * d + 0.5 * d + 0.5 * dp
     ztop = zp + 0.5 * dp + 0.5 * d
     ids = write_spheres(path, "Impact bed grains and projectile (tools/dem_impact.py)",
@@ -154,11 +137,6 @@ def uehara_depth(rho_p: float, rho_b: float, dp: float, h: float, mu: float) -> 
     for _ in range(200):
         dpen = a * (h + dpen) ** (1.0 / 3.0)
     return dpen
-
-
-def read_traj(path: Path) -> np.ndarray:
-    """traj.dat: rows t, z_p, vz_p, fz_p, KE_p, E_mobile."""
-    return np.loadtxt(path, comments="#", ndmin=2)
 
 
 def fit_drag(depth: np.ndarray, v: np.ndarray, force: np.ndarray, mp: float, d: float,
@@ -259,7 +237,7 @@ def analyse(out: Path, log: str, code: str, width: float, depth: float, d: float
             rhop: float, v0: float, mu: float, rho: float, wall: float) -> ImpactResult:
     initial = read_dump(out / "initial.dump")
     final = read_dump(out / "final.dump")
-    tr = read_traj(out / "traj.dat")
+    tr = logs.records(out / "traj.dat")    # t, z_p, vz_p, fz_p, KE_p, E_mobile
     t, zp, vz, fz, kp, em = (tr[:, k] for k in range(6))
     mend = re.search(r"^IMPACT end: t = (\S+) s after the launch, projectile z = (\S+) m, speed (\S+) m/s "
                      r"\(rest below (\S+)\), atoms (\d+) \(at launch (\d+)\)", log, re.M)
@@ -283,10 +261,8 @@ def analyse(out: Path, log: str, code: str, width: float, depth: float, d: float
     zp_end = float(final["z"][pf][0])
     step = max(1, len(t) // 400)
     hist = [[float(t[k]), float(dep[k]), float(-vz[k]), float(bed_force[k] / mp)] for k in range(0, len(t), step)]
-    params = {k: _num(rf"^IMPACT contact:.*\b{re.escape(k)} = (\S+)", log)
-              for k in ("kn", "kt", "gamma_n", "gamma_t", "gamma_n(wall)", "gamma_t(wall)")}
-    params["dt"] = _num(r"^IMPACT timestep:.*\bdt = (\S+) s", log)
-    params["settling kn"] = _num(r"^IMPACT settling contact: kn = (\S+) N/m", log)
+    params = logs.contact_params(log, "IMPACT")
+    params["settling kn"] = logs.number(r"^IMPACT settling contact: kn = (\S+) N/m", log)
     balance, points, hcells = float("nan"), 0, 0
     if code == "hybrid":
         rows = re.findall(r"^HYBRID mass (\S+) points (\S+) cells continuum (\S+) hybrid (\S+)", log, re.M)
@@ -295,7 +271,7 @@ def analyse(out: Path, log: str, code: str, width: float, depth: float, d: float
             balance = max(abs(m - masses[0]) for m in masses) / masses[0]
             points = int(max(float(r[1]) for r in rows))
             hcells = int(max(float(r[2]) + float(r[3]) for r in rows))
-    lines = "\n".join(ln for ln in log.splitlines() if ln.startswith(("IMPACT ", "HYBRID ")))
+    lines = logs.lines(log, "IMPACT ", "HYBRID ")
     return ImpactResult(
         code=code, width=width, depth_bed=depth, d=d, dp=dp, rhop=rhop, v0=v0, mu=mu,
         grains=int((initial["type"] == 1).sum()), packing=phi, surface=zs,
@@ -308,38 +284,9 @@ def analyse(out: Path, log: str, code: str, width: float, depth: float, d: float
         mobile_energy_gain=float((em - em[0]).max()),
         atoms_launch=int(mend.group(6)), atoms_end=int(mend.group(5)),
         max_overlap_initial=max_overlap(initial, d), max_overlap_final=max_overlap(final, d),
-        overlap_expected=_num(r"^IMPACT timestep:.*expected largest overlap/d (\S+)", log),
+        overlap_expected=logs.number(r"^IMPACT timestep:.*expected largest overlap/d (\S+)", log),
         wall_time=wall, mass_balance=balance, hybrid_points=points, hybrid_cells=hcells, params=params, history=hist, drag_bins=fit["bins"],
         log=lines)
-
-
-def _run_deck(code: str, variables: dict, log_path: Path, np_: int, timeout: float,
-              exe: str | None) -> tuple[subprocess.CompletedProcess, float, list]:
-    """Runs one stage of `code`'s deck (hybrid: lmp_hybrid + mpm_solver through
-    tools/hybrid_launch.py). Returns the process, its wall time and the command."""
-    if code == "hybrid":
-        proc, wall = run_lammps(DECKS[code], variables, log_path, np_, "lmp", timeout, hybrid=True)
-        return proc, wall, list(proc.args)
-    exe = exe or shutil.which(EXECUTABLES[code])
-    if exe is None:
-        raise FileNotFoundError(f"{EXECUTABLES[code]} not on PATH")
-    cmd = [exe, "-in", str(DECKS[code]), "-log", str(log_path), "-screen", "none"]
-    if code == "liggghts":
-        cmd.append("-nocite")
-    for k, v in variables.items():
-        cmd += ["-var", k, str(v)]
-    if np_ > 1:
-        cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
-    t0 = time.time()
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=log_path.parent)
-    return proc, time.time() - t0, cmd
-
-
-def _failed(code: str, what: str, proc, cmd, log_path: Path) -> RuntimeError:
-    log = log_path.read_text(errors="replace") if log_path.exists() else ""
-    tail = "\n".join(log.splitlines()[-30:])
-    return RuntimeError(f"{code} failed {what} ({proc.returncode}): {' '.join(map(str, cmd))}\n"
-                        f"{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}\n{tail}")
 
 
 def run(code: str = "lammps", width_rows: int = 25, depth: float = 0.036, d: float = 0.002,
@@ -352,10 +299,7 @@ def run(code: str = "lammps", width_rows: int = 25, depth: float = 0.036, d: flo
     the same deck) unless `bed` names one already settled (from any code, same geometry and
     parameters), then the impact from it (hybrid: dem_3d.lmp + hybrid_3d.lmp coupled,
     hybrid_vars its extra variables). width_rows: the box side in floor rows (1.2 d each)."""
-    out = Path(out) if out else Path.cwd() / f"dem_impact_{code}"
-    out.mkdir(parents=True, exist_ok=True)
-    for f in ("final.dump", "initial.dump", "traj.dat"):
-        (out / f).unlink(missing_ok=True)
+    out = workdir(out, f"dem_impact_{code}", ("final.dump", "initial.dump", "traj.dat"))
     extra = {k: str(v) for k, v in (extra_vars or {}).items()}
     rho = float(extra.get("rho", 2500.0))
     mu = float(extra.get("mu", 0.5))
@@ -367,48 +311,31 @@ def run(code: str = "lammps", width_rows: int = 25, depth: float = 0.036, d: flo
         bed = out / "bed.data"
         bed.unlink(missing_ok=True)
         prep_code = "lammps" if code == "hybrid" else code
-        log_path = out / "log.prep.txt"
-        proc, prep_wall, cmd = _run_deck(prep_code, dict(variables, prep=1, impact=0, bed=bed), log_path, np_,
-                                         timeout, exe if code != "hybrid" else None)
-        if proc.returncode != 0 or not bed.exists():
-            raise _failed(prep_code, "to settle the bed", proc, cmd, log_path)
-    variables.update(prep=0, impact=1, bed=Path(bed))
-    if code == "hybrid":
-        variables.update(hybrid=1, hdeck=str(HYBRID_DECK), **{k: str(v) for k, v in (hybrid_vars or {}).items()})
-    log_path = out / "log.txt"
-    proc, wall, cmd = _run_deck(code, variables, log_path, np_, timeout, exe)
-    if proc.returncode != 0 or not (out / "final.dump").exists():
-        raise _failed(code, "in the impact", proc, cmd, log_path)
-    log = log_path.read_text(errors="replace")
-    res = analyse(out, log, code, geo["width"], depth, d, dp, rhop, speed, mu, rho, wall)
+        done = FORMS.run(prep_code, dict(variables, prep=1, impact=0, bed=bed), out / "log.prep.txt", np_=np_,
+                         exe=exe if code != "hybrid" else None, timeout=timeout)
+        done.check("to settle the bed", bed)
+        prep_wall = done.wall
+    variables.update(prep=0, impact=1, bed=Path(bed).resolve())
+    done = FORMS.run(code, variables, out / "log.txt", hybrid_vars, np_=np_, exe=exe, timeout=timeout)
+    log = done.check("in the impact", out / "final.dump")
+    res = analyse(out, log, code, geo["width"], depth, d, dp, rhop, speed, mu, rho, done.wall)
     res.prep_wall_time = prep_wall
     res.bed = str(bed)
     return res
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--code", choices=sorted(DECKS), default="lammps")
-    p.add_argument("--width", type=int, default=25, help="box side in floor rows (1.2 d each)")
-    p.add_argument("--depth", type=float, default=0.036, help="bed depth, m")
-    p.add_argument("--d", type=float, default=0.002, help="mean grain diameter, m")
-    p.add_argument("--dp", type=float, default=0.016, help="projectile diameter, m")
-    p.add_argument("--rhop", type=float, default=2500.0, help="projectile density, kg/m^3")
-    p.add_argument("--speed", type=float, default=5.0, help="impact speed v0, m/s")
-    p.add_argument("--np", type=int, default=1, dest="np_")
-    p.add_argument("--out", default=None)
-    p.add_argument("--seed", type=int, default=2024)
-    p.add_argument("--var", action="append", default=[], metavar="NAME=VALUE",
-                   help="extra deck variable (e, mu, knv, knfac, dtdiv, vrest, tmin, tmax, trec, ...)")
-    p.add_argument("--hvar", action="append", default=[], metavar="NAME=VALUE",
-                   help="variable of the hybrid twin (hcell, hevery, hadapt, hdepth, hband, hradius, ...)")
-    p.add_argument("--bed", default=None, help="settled bed (bed.data of an earlier run, same sizes): "
-                   "skip the settling")
-    p.add_argument("--json", action="store_true")
-    a = p.parse_args(argv)
+    p = cli.scene_parser(__doc__, 2024, dict(
+        width=(25, "box side in floor rows (1.2 d each)"), depth=(0.036, "bed depth, m"),
+        d=(0.002, "mean grain diameter, m"), dp=(0.016, "projectile diameter, m"),
+        rhop=(2500.0, "projectile density, kg/m^3"), speed=(5.0, "impact speed v0, m/s"),
+        bed=(None, "settled bed (bed.data of an earlier run, same sizes): skip the settling", str)),
+        codes=CODES, var="deck variable (e, mu, knv, knfac, dtdiv, vrest, tmin, tmax, trec, ...)",
+        hvar="variable of the hybrid twin (hcell, hevery, hadapt, hdepth, hband, hradius, ...)")
+    a = cli.parse(p, argv)
     res = run(a.code, a.width, a.depth, a.d, a.dp, a.speed, a.rhop, a.np_, a.out, a.seed,
-              extra_vars=deck_vars(p, a.var), hybrid_vars=deck_vars(p, a.hvar, "--hvar"), bed=a.bed)
-    print_result(res, a.json, ratio=res.ratio)
+              extra_vars=a.var, hybrid_vars=a.hvar, bed=a.bed)
+    cli.print_result(res, a.json, ratio=res.ratio)
     return 0
 
 

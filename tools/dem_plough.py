@@ -21,32 +21,19 @@ bed, phi = PHI_BED.
 """
 from __future__ import annotations
 
-import argparse
 import math
-import os
-import re
-import shutil
-import subprocess
 import sys
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from dem3d_collapse import FLOOR_SPACING, LATTICE_JITTER, LATTICE_SPACING, _num, pour_lattice  # noqa: E402
-from dem_collapse import deck_vars, max_overlap, print_result, read_dump  # noqa: E402
-from sphere_data import write_spheres  # noqa: E402
+from hgtools import cli, logs
+from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, jittered, max_overlap, pour_lattice, read_dump,
+                            slab_floor, write_spheres)
+from hgtools.runner import CODES, Forms, workdir
 
-REPO = Path(__file__).resolve().parent.parent
-DECKS = {
-    "lammps": REPO / "input_decks" / "plough" / "dem_3d.lmp",
-    "liggghts": REPO / "input_decks" / "plough" / "liggghts_3d.in",
-    "hybrid": REPO / "input_decks" / "plough" / "dem_3d.lmp",
-}
-HYBRID_DECK = REPO / "input_decks" / "plough" / "hybrid_3d.lmp"
-EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
+FORMS = Forms("plough")
 G = 9.81
 
 PHI_BED = 27.0          # internal friction angle of the bed, degrees (spheres, mu = 0.5: 25-30)
@@ -86,11 +73,7 @@ def write_data(path: Path, bedh: float, depth: float, d: float, length: float, x
     volume."""
     rng = np.random.default_rng(seed)
     W = thickness_d * FLOOR_SPACING * d
-    fs = FLOOR_SPACING * d
-    fx = np.arange(0.5 * fs - 2 * d, length + 1.5 * d, fs)     # inside the box, x < length + 2 d
-    fz = (np.arange(thickness_d) + 0.5) * fs
-    FX, FZ = np.meshgrid(fx, fz, indexing="ij")
-    floor = np.column_stack([FX.ravel(), np.full(FX.size, -0.5 * d), FZ.ravel()])
+    floor = slab_floor(length + 1.5 * d, thickness_d, d)      # inside the box, x < length + 2 d
     # blade
     sy = BLADE_SPACING * d
     nyb = int(math.ceil(((1 + topfac) * depth - d) / sy)) + 1
@@ -111,22 +94,14 @@ def write_data(path: Path, bedh: float, depth: float, d: float, length: float, x
         row = xs if y < bedh + d - clear else xs[free_x]
         sites.extend((x, y, z) for x in row for z in zs)
         layer += 1
-    grains = np.array(sites[:need])
-    grains += rng.uniform(-LATTICE_JITTER * d, LATTICE_JITTER * d, grains.shape)
+    grains, diam = jittered(rng, np.array(sites[:need]), d)
     grains[:, 2] %= W
-    diam = rng.uniform(0.9 * d, 1.1 * d, len(grains))
     ytop = max(grains[:, 1].max(), by[-1]) + 4 * d
     write_spheres(path, "Quasi-3D plough: grains, floor, blade (tools/dem_plough.py)",
                   ((-2 * d, length + 2 * d), (-1.5 * d, ytop), (0.0, W)),
                   [("grains", 1, diam, rho, grains), ("floor", 2, d, rho, floor),
                    ("blade", 3, d, BLADE_DENSITY * rho, blade)], types=5)
     return dict(thickness=W, poured=len(grains), floor=len(floor), blade=len(blade), ytop=ytop)
-
-
-def read_drag(path: Path) -> np.ndarray:
-    """drag.dat of fix ave/time: columns step, x_blade, F_x, F_y."""
-    rows = [ln.split() for ln in Path(path).read_text().splitlines() if ln.strip() and not ln.startswith("#")]
-    return np.array(rows, dtype=float).reshape(-1, 4)
 
 
 def bed_state(dump: dict, bedh: float, length: float, d: float, width: float) -> dict:
@@ -205,27 +180,20 @@ class PloughResult:
 
 
 def hybrid_totals(log: str) -> dict:
-    """From the hybrid run's thermo lines (hybrid_3d.lmp's thermo_style): the most material points
+    """From the hybrid run's thermo table (hybrid_3d.lmp's thermo_style): the most material points
     and continuum / hybrid cells over the drag, and the largest relative change of the total mass
     f_couple[8] (grains' carried mass plus points). fix hybrid/mpm sums that total over all
     atoms, its group or not (FixHybridMPM::grain_totals), so it also holds the floor and the
     blade; their mass is constant, so the drift is still that of grains plus points."""
-    rows = []
-    for line in log.splitlines():
-        parts = line.split()
-        if len(parts) == 13 and parts[0].isdigit():
-            try:
-                rows.append([float(p) for p in parts])
-            except ValueError:
-                pass
+    rows = logs.thermo_rows(log, require="f_couple[8]")
     if not rows:
         return {}
-    a = np.array(rows)     # step time ng ke ke/grain x_blade points mass continuum hybrid discrete fx fy
-    mass = a[:, 7]
+    mass = np.array([r["f_couple[8]"] for r in rows])
     good = mass > 0
-    return dict(points_max=int(a[:, 6].max()), mass_first=float(mass[good][0]) if good.any() else 0.0,
+    return dict(points_max=int(max(r["f_couple[3]"] for r in rows)), mass_first=float(mass[good][0]) if good.any() else 0.0,
                 mass_drift=float(np.max(np.abs(mass[good] - mass[good][0])) / mass[good][0]) if good.any() else 0.0,
-                continuum_cells_max=int(a[:, 8].max()), hybrid_cells_max=int(a[:, 9].max()))
+                continuum_cells_max=int(max(r["f_couple[16]"] for r in rows)),
+                hybrid_cells_max=int(max(r["f_couple[17]"] for r in rows)))
 
 
 def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d: float = 0.002,
@@ -241,42 +209,16 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
     if thickness_d is None:
         thickness_d = HYBRID_ROWS if code == "hybrid" else 4
     drag = drag if drag is not None else 3 * depth
-    deck = DECKS[code]
-    # absolute: the codes run in it (cwd), and the paths they are given must hold there too
-    out = (Path(out) if out else Path.cwd() / f"plough_{code}").resolve()
-    out.mkdir(parents=True, exist_ok=True)
-    for f in ("final.dump", "settled.dump", "inserted.dump", "drag.dat"):
-        (out / f).unlink(missing_ok=True)
+    out = workdir(out, f"plough_{code}", ("final.dump", "settled.dump", "inserted.dump", "drag.dat"))
     geo = geometry(depth, d, drag, topfac)
     data = write_data(out / "grains.data", bedh, depth, d, geo["length"], geo["xblade"], thickness_d,
                       topfac, seed)
     variables = dict(data=out / "grains.data", out=out, bedh=bedh, depth=depth, d=d,
                      xblade=f"{geo['xblade']:.9g}", length=f"{geo['length']:.9g}", speed=speed,
                      drag=f"{drag:.9g}", **(extra_vars or {}))
-    if code == "hybrid":
-        variables.update(zwall=1, hybrid=1, hdeck=HYBRID_DECK, **(hybrid_vars or {}))
-        cmd = [sys.executable, str(REPO / "tools" / "hybrid_launch.py"), "-np", str(np_), str(deck),
-               "-log", str(out / "log.txt"), "-screen", "none"]
-    else:
-        exe = exe or shutil.which(EXECUTABLES[code])
-        if exe is None:
-            raise FileNotFoundError(f"{EXECUTABLES[code]} not on PATH")
-        cmd = [exe, "-in", str(deck), "-log", str(out / "log.txt"), "-screen", "none"]
-        if code == "liggghts":
-            cmd.append("-nocite")
-        if np_ > 1:
-            cmd = [str(REPO / "tools" / "mpirun.sh"), "-np", str(np_)] + cmd
-    for k, v in variables.items():
-        cmd += ["-var", k, str(v)]
-    env = dict(os.environ, OMP_NUM_THREADS="1")
-    t0 = time.time()
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=out, env=env)
-    wall = time.time() - t0
-    log = (out / "log.txt").read_text(errors="replace") if (out / "log.txt").exists() else ""
-    if proc.returncode != 0 or not (out / "final.dump").exists() or "PLOUGH drag end" not in log:
-        tail = "\n".join(log.splitlines()[-30:])
-        raise RuntimeError(f"{code} failed ({proc.returncode}): {' '.join(cmd)}\n{proc.stdout[-2000:]}\n"
-                           f"{proc.stderr[-2000:]}\n{tail}")
+    done = FORMS.run(code, variables, out / "log.txt", {"zwall": 1, **(hybrid_vars or {})}, np_=np_, exe=exe,
+                     timeout=timeout, threads=1)
+    log = done.check("in the drag", out / "final.dump", marker="PLOUGH drag end")
     settled = read_dump(out / "settled.dump")
     inserted = read_dump(out / "inserted.dump")
     bed = bed_state(settled, bedh, geo["length"], d, data["thickness"])
@@ -284,50 +226,36 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
     lower_edge = float((inserted["y"][bl] - inserted["radius"][bl]).min())
     depth_actual = bed["surface"] - lower_edge
     x0 = float(inserted["x"][bl].mean())
-    rec = read_drag(out / "drag.dat")
+    rec = logs.records(out / "drag.dat")    # fix ave/time: step, x_blade, F_x, F_y
     steady = steady_drag(rec, x0, drag)
     rho = float((extra_vars or {}).get("rho", 2500))
     rankine = rankine_drag(bed["packing"] * rho, depth_actual) * data["thickness"]
     gm = (settled["type"] == 1) | (settled["type"] == 2)
     overlap = max_overlap({k: v[gm] for k, v in settled.items()}, d, data["thickness"])
-    params = {k: _num(rf"^PLOUGH contact:.*\b{re.escape(k)} = (\S+)", log)
-              for k in ("kn", "kt", "gamma_n", "gamma_t", "gamma_n(wall)", "gamma_t(wall)")}
-    params["dt"] = _num(r"^PLOUGH timestep:.*dt = (\S+) s", log)
-    hyb = hybrid_totals(log) if code == "hybrid" else {}
-    mass_end = _num(r"^PLOUGH drag end:.*mass (\S+) kg", log)
     return PloughResult(
         code=code, bedh=bedh, depth=depth, d=d, speed=speed, dragged=drag, thickness=data["thickness"],
-        grains=int(_num(r"^PLOUGH settled bed: (\d+) grains", log)),
-        mass=_num(r"^PLOUGH settled bed:.*mass (\S+) kg", log), mass_end=mass_end,
+        grains=int(logs.number(r"^PLOUGH settled bed: (\d+) grains", log)),
+        mass=logs.number(r"^PLOUGH settled bed:.*mass (\S+) kg", log),
+        mass_end=logs.number(r"^PLOUGH drag end:.*mass (\S+) kg", log),
         packing=bed["packing"], surface=bed["surface"], depth_actual=depth_actual,
         blade_top=float((inserted["y"][bl] + inserted["radius"][bl]).max()) - bed["surface"],
-        max_overlap=overlap, wall_time=wall, params=params, hybrid=hyb, rankine=rankine,
+        max_overlap=overlap, wall_time=done.wall, params=logs.contact_params(log, "PLOUGH"),
+        hybrid=hybrid_totals(log) if code == "hybrid" else {}, rankine=rankine,
         curve=[(float(a - x0), float(-b)) for a, b in zip(rec[:, 1], rec[:, 2])],
-        log="\n".join(ln for ln in log.splitlines() if ln.startswith("PLOUGH ")), **steady)
+        log=logs.lines(log, "PLOUGH "), **steady)
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--code", choices=sorted(DECKS), default="lammps")
-    p.add_argument("--depth", type=float, default=0.012, help="h, m")
-    p.add_argument("--bedh", type=float, default=None, help="H, bed height, m (default 2 h)")
-    p.add_argument("--d", type=float, default=0.002)
-    p.add_argument("--drag", type=float, default=None, help="dragged distance, m (default 3 h)")
-    p.add_argument("--speed", type=float, default=0.1, help="V, m/s")
-    p.add_argument("--topfac", type=float, default=0.25, help="blade top edge above the bed, in h")
-    p.add_argument("--thickness", type=int, default=None,
-                   help=f"slab thickness in floor rows (1.2 d each; default 4, hybrid {HYBRID_ROWS})")
-    p.add_argument("--np", type=int, default=1, dest="np_")
-    p.add_argument("--out", default=None)
-    p.add_argument("--seed", type=int, default=2024)
-    p.add_argument("--var", action="append", default=[], metavar="NAME=VALUE", help="deck variable")
-    p.add_argument("--hvar", action="append", default=[], metavar="NAME=VALUE",
-                   help="hybrid_3d.lmp variable (with --code hybrid)")
-    p.add_argument("--json", action="store_true")
-    a = p.parse_args(argv)
+    p = cli.scene_parser(__doc__, 2024, dict(
+        depth=(0.012, "h, m"), bedh=(None, "H, bed height, m (default 2 h)"), d=(0.002, "mean grain diameter, m"),
+        drag=(None, "dragged distance, m (default 3 h)"), speed=(0.1, "V, m/s"),
+        topfac=(0.25, "blade top edge above the bed, in h"),
+        thickness=(None, f"slab thickness in floor rows (1.2 d each; default 4, hybrid {HYBRID_ROWS})", int)),
+        codes=CODES, hvar="hybrid_3d.lmp variable (with --code hybrid)")
+    a = cli.parse(p, argv)
     res = run(a.code, a.depth, a.bedh, a.d, a.drag, a.speed, a.topfac, a.thickness, a.np_, a.out, a.seed,
-              extra_vars=deck_vars(p, a.var), hybrid_vars=deck_vars(p, a.hvar, "--hvar"))
-    print_result(res, a.json, ratio=res.ratio)
+              extra_vars=a.var, hybrid_vars=a.hvar)
+    cli.print_result(res, a.json, ratio=res.ratio)
     return 0
 
 

@@ -19,8 +19,7 @@ import os
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from collapse_report import SOLVER, run_report  # noqa: E402
+from collapse_report import SOLVER, run_report
 
 REPO = Path(__file__).resolve().parent.parent
 RUNS = ["dem", "hybrid_fixed", "mpm_drucker_prager", "mpm_mu_i"]

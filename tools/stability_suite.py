@@ -36,9 +36,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import re
-import subprocess
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -49,12 +47,11 @@ import numpy as np
 import tomli_w
 from tqdm import tqdm
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from dem_collapse import run_lammps  # noqa: E402
-from mpm_results import load_run  # noqa: E402
+from hgtools.logs import thermo_rows
+from hgtools.runner import run_deck, run_mpm
+from mpm_results import load_run
 
 REPO = Path(__file__).resolve().parent.parent
-SOLVER = REPO / "build" / "mpm_solver" / "mpm_solver"
 GRAIN_DECK = REPO / "input_decks" / "stability" / "grain_bed_2d.lmp"
 G = 9.81
 MASS_TOL = 1e-12
@@ -216,10 +213,8 @@ def run_continuum(name, what, expected, build, message, checks, out_dir: Path, t
     scene = build()
     path = work / "scene.toml"
     path.write_text(tomli_w.dumps(scene))
-    t0 = time.monotonic()
-    proc = subprocess.run([str(SOLVER), str(path), "--output", str(work / "output"), "--quiet", "--threads", "1"],
-                          capture_output=True, text=True, timeout=timeout)
-    out.wall = time.monotonic() - t0
+    done = run_mpm(path, "--output", work / "output", "--threads", "1", timeout=timeout)
+    proc, out.wall = done.proc, done.wall
     text = proc.stdout + proc.stderr
     if expected == "stopped":
         stopped(out, text, message, proc.returncode == 0)
@@ -239,22 +234,7 @@ def run_continuum(name, what, expected, build, message, checks, out_dir: Path, t
 
 # -------------------------------------------------------------------------------- grains
 GRAIN_CASES = ("stiff_grains_deck_step", "stiff_grains_safe_step", "impact_grains")
-THERMO_RE = re.compile(r"^\s*Step Atoms KinEng f_couple\[8\] f_couple\[9\] f_couple\[10\] f_couple\[15\]\s*$")
-
-
-def thermo_rows(log: str) -> np.ndarray:
-    rows, on = [], False
-    for line in log.splitlines():
-        if THERMO_RE.match(line):
-            on = True
-            continue
-        if on:
-            parts = line.split()
-            if len(parts) == 7 and parts[0].isdigit():
-                rows.append([float(p) for p in parts])
-            elif line.startswith("Loop time"):
-                on = False
-    return np.array(rows)
+THERMO = ("Step", "Atoms", "KinEng", "f_couple[8]", "f_couple[9]", "f_couple[10]", "f_couple[15]")
 
 
 def run_grains(name, what, expected, variables: dict, message: str, out_dir: Path, np_: int,
@@ -263,15 +243,16 @@ def run_grains(name, what, expected, variables: dict, message: str, out_dir: Pat
     work = out_dir / name
     work.mkdir(parents=True, exist_ok=True)
     log = work / "log.lammps"
-    proc, out.wall = run_lammps(GRAIN_DECK, variables, log, np_, "", timeout, hybrid=True)
-    text = (log.read_text() if log.exists() else "") + proc.stdout + proc.stderr
+    done = run_deck("hybrid", GRAIN_DECK, variables, log, np_=np_, timeout=timeout)
+    proc, out.wall = done.proc, done.wall
+    text = done.text() + proc.stdout + proc.stderr
     if expected == "stopped":
         stopped(out, text, message, proc.returncode == 0)
         return out
     if proc.returncode != 0:
         out.status = "FAILED: " + " | ".join(ln for ln in text.splitlines() if "ERROR" in ln)[:400]
         return out
-    rows = thermo_rows(text)
+    rows = np.array([[r[c] for c in THERMO] for r in thermo_rows(text, require="f_couple[15]")])
     if len(rows) < 3:
         out.status = "FAILED: no thermo output"
         return out

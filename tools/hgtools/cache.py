@@ -1,0 +1,61 @@
+"""The one cache of settled states (a scene's grains poured and settled, about half of a run's
+cost), shared by all clones on a machine:
+
+    ${HYBRID_CACHE:-~/.cache/hybrid-granular}/<kind>/<label>_<params key>_<sources key>/<file>
+
+with one keying rule: the params key is the SHA-1 of the parameters as sorted JSON, the sources key
+the SHA-1 of the files that make the state (the deck, and the driver when it writes the initial
+grains), 10 hex digits each. Next to the state file, `prep.json` may hold what the preparation
+measured.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+
+def root(override: str | Path | None = None) -> Path:
+    """The cache directory: `override` (a driver's --cache-dir), else $HYBRID_CACHE, else
+    ~/.cache/hybrid-granular."""
+    if override is not None:
+        return Path(override)
+    return Path(os.environ.get("HYBRID_CACHE", str(Path.home() / ".cache" / "hybrid-granular")))
+
+
+def digest(data: bytes) -> str:
+    return hashlib.sha1(data).hexdigest()[:10]
+
+
+@dataclass(frozen=True)
+class Settled:
+    """One entry: the state file and its preparation record."""
+    path: Path
+
+    @classmethod
+    def entry(cls, kind: str, label: str, params: dict, sources: tuple, file: str,
+              override: str | Path | None = None) -> "Settled":
+        key = digest(json.dumps(params, sort_keys=True).encode())
+        made = digest(b"".join(Path(p).read_bytes() for p in sources))
+        return cls(root(override) / kind / f"{label}_{key}_{made}" / file)
+
+    @property
+    def info_path(self) -> Path:
+        return self.path.with_name("prep.json")
+
+    def cached(self, with_info: bool = False) -> bool:
+        return self.path.exists() and (not with_info or self.info_path.exists())
+
+    def info(self) -> dict:
+        return json.loads(self.info_path.read_text())
+
+    def store(self, produced: Path, info: dict | None = None) -> None:
+        """Keeps the state a run produced (and its record)."""
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if Path(produced).resolve() != self.path.resolve():
+            shutil.copyfile(produced, self.path)
+        if info is not None:
+            self.info_path.write_text(json.dumps(info, indent=1))
