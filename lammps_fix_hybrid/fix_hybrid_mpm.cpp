@@ -43,6 +43,7 @@
 #include "coupler/material_file.hpp"
 #include "coupler/oracle.hpp"
 #include "coupler/protocol.hpp"
+#include "coupler/rezone_log.hpp"
 #include "coupler/transfer.hpp"
 #include "coupler/tuning.hpp"
 #include "coupler/version.hpp"
@@ -95,7 +96,7 @@ const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
     "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
     "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
-    "seed, steps_per_contact, material, relax";
+    "seed, steps_per_contact, material, relax, rezone_log";
 
 // Container faces in the order of coupler::face_bit (axis, then lo/hi): the values of `touch`
 const char *const kFaceNames[6] = {"xlo", "xhi", "ylo", "yhi", "zlo", "zhi"};
@@ -151,7 +152,8 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     settings(new coupler::ContinuumSettings), oracle(new coupler::OracleSettings), diameter_given(false), density_given(false), exchanges(0),
     restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
     converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle), new_grain_mask(1),
-    polydispersity(0.0), timestep_checked(false), fewest_steps_warned(BIG),
+    polydispersity(0.0), rezone_log(coupler::RezoneLog::kSummary), interval_rezones(new coupler::RezoneTally),
+    run_rezones(new coupler::RezoneTally), timestep_checked(false), fewest_steps_warned(BIG),
     warn_steps_per_contact(coupler::kWarnStepsPerContact), relax_time(-1.0), restored(false), state_loaded(false),
     clock_time(0.0), clock_step(-1), clock_dt(0.0),
     stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1),
@@ -301,6 +303,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
         illegal(fmt::format("keyword 'steps_per_contact' (warn below this many DEM steps per contact) must exceed "
                             "pi/2, where velocity Verlet goes unstable, not {}", val));
     }
+    else if (key == "rezone_log") set_rezone_log(val);
     else if (key == "mpm_state") mpm_state_path = val;
     else if (key == "every") every = integer(key, val);
     else if (key == "timeout") reply_timeout = positive(key, val, "seconds");
@@ -705,10 +708,54 @@ void FixHybridMPM::check_oracle()
 
 int FixHybridMPM::modify_param(int narg, char **arg)
 {
-  // fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g): between runs
-  if (narg < 2 || !set_oracle_keyword(arg[0], arg[1])) return 0;
+  // fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g), and
+  // fix_modify ID rezone_log full|summary|quiet: between runs
+  if (narg < 2) return 0;
+  if (strcmp(arg[0], "rezone_log") == 0) {
+    set_rezone_log(arg[1]);
+    return 2;
+  }
+  if (!set_oracle_keyword(arg[0], arg[1])) return 0;
   check_oracle();
   return 2;
+}
+
+void FixHybridMPM::set_rezone_log(const std::string &value)
+{
+  const auto level = coupler::parse_rezone_log(value);
+  if (!level)
+    illegal(fmt::format("keyword 'rezone_log' must be {}, not '{}'", coupler::kRezoneLogValues, value));
+  rezone_log = *level;
+}
+
+/* ----------------------------------------------------------------------
+   the rezone log (keyword rezone_log): every rezone is counted in the
+   summaries; its own two lines are printed in the full log, and in the
+   default one for the conversion at the start (its zones are not the oracle's)
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::log_rezone(const coupler::RezoneReport &report, int source, const double *before,
+                              const double *after)
+{
+  interval_rezones->add(report);
+  run_rezones->add(report);
+  const bool conversion = source != coupler::kZonesOracle;
+  if (comm->me != 0) return;
+  if (rezone_log == coupler::RezoneLog::kFull || (rezone_log == coupler::RezoneLog::kSummary && conversion)) {
+    utils::logmesg(lmp, coupler::rezone_line(report) + "\n");
+    utils::logmesg(lmp, coupler::rezone_totals_line(report.step, before, after) + "\n");
+  }
+}
+
+// at thermo output: the rezones since the last one (if any); at the end of a run: its rezones
+void FixHybridMPM::log_rezone_summary(bool end_of_run)
+{
+  coupler::RezoneTally &tally = end_of_run ? *run_rezones : *interval_rezones;
+  const bool shown = end_of_run || rezone_log != coupler::RezoneLog::kQuiet;
+  if (comm->me == 0 && shown && tally.rezones() > 0)
+    utils::logmesg(lmp, tally.summary_line(end_of_run ? coupler::kSummaryRun : coupler::kSummaryInterval,
+                                           update->ntimestep) + "\n");
+  tally.restart(update->ntimestep + 1);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -971,6 +1018,8 @@ void FixHybridMPM::setup(int /*vflag*/)
   // a rezone left pending at the end of the last run is dropped (its stress is of a step
   // before the commands between the runs); the oracle runs again at its next step
   rezone_pending = false;
+  interval_rezones->restart(update->ntimestep + 1);
+  run_rezones->restart(update->ntimestep + 1);
   if (!converted && (!region_ids.empty() || adapt_every > 0))
     schedule_rezone(region_ids.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
   if (adapt_every > 0) {
@@ -1435,24 +1484,27 @@ void FixHybridMPM::rezone(int source)
     atom->map_init();
     atom->map_set();
   }
-  if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: step {}: {} grains became {} material points, {} grains are "
-                                    "hybrid (weight {}), {} grains made from points; {} cells moved; grid cells "
-                                    "in the box: {} continuum, {} hybrid, {} discrete; {} cells gave their rest of material "
-                                    "to nearby points, {} kept it; carried mass / solid mass {:.3g} to {:.3g}\n",
-                                    update->ntimestep, all[0], ack.points_made, all[2], settings->grain_weight, all[1],
-                                    ack.moved_cells, ack.zone_cells[coupler::kContinuum],
-                                    ack.zone_cells[coupler::kHybrid], ack.zone_cells[coupler::kDiscrete],
-                                    ack.rests_moved, ack.rests_kept, -drift_all[0], drift_all[1]));
+  coupler::RezoneReport report;
+  report.step = update->ntimestep;
+  report.grains_deleted = all[0];
+  report.points_made = ack.points_made;
+  report.hybrid_grains = all[2];
+  report.weight = settings->grain_weight;
+  report.grains_made = all[1];
+  report.moved_cells = ack.moved_cells;
+  report.continuum_cells = ack.zone_cells[coupler::kContinuum];
+  report.hybrid_cells = ack.zone_cells[coupler::kHybrid];
+  report.discrete_cells = ack.zone_cells[coupler::kDiscrete];
+  report.rests_moved = ack.rests_moved;
+  report.rests_kept = ack.rests_kept;
+  report.lightest = -drift_all[0];
+  report.heaviest = drift_all[1];
   // what the rezone did to the totals of grains plus points (exact up to round-off)
-  if (comm->me == 0) {
-    double after[7] = {ack.mass, ack.momentum[0], ack.momentum[1], ack.momentum[2], ack.angular[0], ack.angular[1],
-                       ack.angular[2]};
-    std::string line = fmt::format("fix hybrid/mpm: step {}: totals before/after the rezone:", update->ntimestep);
-    for (int k = 0; k < 7; k++)
-      line += fmt::format(" {:.17g} {:.17g}", grains_before[k] + ack.before[k], grains_after[k] + after[k]);
-    utils::logmesg(lmp, line + "\n");
-  }
+  const double points_after[7] = {ack.mass, ack.momentum[0], ack.momentum[1], ack.momentum[2],
+                                  ack.angular[0], ack.angular[1], ack.angular[2]};
+  double before[7], after[7];
+  for (int k = 0; k < 7; k++) before[k] = grains_before[k] + ack.before[k], after[k] = grains_after[k] + points_after[k];
+  log_rezone(report, source, before, after);
   check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
 }
 
@@ -1476,6 +1528,8 @@ void FixHybridMPM::end_of_step()
   const bigint step = update->ntimestep;
   const bool oracle_next = adapt_every > 0 && converted && (step + 1) % adapt_every == 0;
   if (oracle_next) stress_compute()->addstep(step + 1);    // its virial
+  // LAMMPS prints its thermo output right after this step's end_of_step (Output::write)
+  if (output->next_thermo == step) log_rezone_summary(false);
   if (step % every != 0) return;
   if (domain->dimension == 2) exchange<2>(false);
   else exchange<3>(false);
@@ -1688,6 +1742,7 @@ void FixHybridMPM::post_run()
     else exchange<3>(true);
   }
   last_step = update->ntimestep;
+  log_rezone_summary(true);
   if (comm->me == 0 && link)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} exchange(s) with the MPM process so far\n", exchanges));
 }

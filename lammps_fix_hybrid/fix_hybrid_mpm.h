@@ -39,6 +39,9 @@ template <int D> struct GrainSums;
 struct CellGrains;
 struct OracleSettings;
 struct CalibratedMaterial;
+struct RezoneReport;
+class RezoneTally;
+enum class RezoneLog;
 }
 
 namespace LAMMPS_NS {
@@ -124,6 +127,12 @@ class FixHybridMPM : public Fix {
   double polydispersity;                  // of the group's diameters, for the packing template
   std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
   std::unique_ptr<coupler::PackingTemplate<3>> template3;
+  coupler::RezoneLog rezone_log;          // keyword rezone_log: how much of the rezones the log shows
+  std::unique_ptr<coupler::RezoneTally> interval_rezones;    // since the last thermo output (rank 0 prints)
+  std::unique_ptr<coupler::RezoneTally> run_rezones;         // since the start of the run
+  void set_rezone_log(const std::string &value);
+  void log_rezone(const coupler::RezoneReport &report, int source, const double *before, const double *after);
+  void log_rezone_summary(bool end_of_run);
   bool timestep_checked;                  // the DEM time step was checked (and logged) once
   double fewest_steps_warned;             // steps per contact at the last warning
   double warn_steps_per_contact;          // warn below this many DEM steps per contact (keyword steps_per_contact)
