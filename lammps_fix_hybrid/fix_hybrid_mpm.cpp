@@ -40,6 +40,7 @@
 #include "coupler/conversion.hpp"
 #include "coupler/dem_timestep.hpp"
 #include "coupler/enrichment.hpp"
+#include "coupler/fix_options.hpp"
 #include "coupler/material_file.hpp"
 #include "coupler/oracle.hpp"
 #include "coupler/protocol.hpp"
@@ -92,15 +93,6 @@ struct HookeanConstants : PairGranHookeHistory {
   }
 };
 
-const char *const kKeywords =
-    "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
-    "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
-    "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
-    "seed, steps_per_contact, material, relax, rezone_log";
-
-// Container faces in the order of coupler::face_bit (axis, then lo/hi): the values of `touch`
-const char *const kFaceNames[6] = {"xlo", "xhi", "ylo", "yhi", "zlo", "zhi"};
-
 // Thermo vector entries (docs/fix_hybrid_mpm.md)
 enum {
   kVecExchanges, kVecCoupledGrains, kVecPoints, kVecSharedNodes, kVecMismatch, kVecSubsteps, kVecMpmDt,
@@ -146,200 +138,21 @@ Fix *FixHybridMPM::creator(LAMMPS *lmp, int narg, char **arg)
 /* ---------------------------------------------------------------------- */
 
 FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
-    Fix(lmp, narg, arg), cell(-1.0), reply_timeout(30.0), idle_timeout(600.0),
-    model(coupler::kModelDruckerPrager), every(1), hybrid_width(2), adapt_every(0), grain_type(0),
-    template_seed(12345), inertia(-1.0),
-    settings(new coupler::ContinuumSettings), oracle(new coupler::OracleSettings), diameter_given(false), density_given(false), exchanges(0),
-    restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
-    converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle), new_grain_mask(1),
-    polydispersity(0.0), rezone_log(coupler::RezoneLog::kSummary), interval_rezones(new coupler::RezoneTally),
-    run_rezones(new coupler::RezoneTally), timestep_checked(false), fewest_steps_warned(BIG),
-    warn_steps_per_contact(coupler::kWarnStepsPerContact), relax_time(-1.0), restored(false), state_loaded(false),
-    clock_time(0.0), clock_step(-1), clock_dt(0.0),
-    stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1),
-    ledger_started(false), continuum_start(0.0)
+    Fix(lmp, narg, arg), exchanges(0), restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr),
+    support(nullptr), converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle),
+    new_grain_mask(1), polydispersity(0.0), interval_rezones(new coupler::RezoneTally),
+    run_rezones(new coupler::RezoneTally), timestep_checked(false), fewest_steps_warned(BIG), restored(false),
+    state_loaded(false), clock_time(0.0), clock_step(-1), clock_dt(0.0), stress_id(nullptr),
+    last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger_started(false), continuum_start(0.0)
 {
-  // fix ID group hybrid/mpm keyword value ...
-
-  auto number = [&](const std::string &key, const std::string &val) {
-    if (!utils::is_double(val)) illegal(fmt::format("keyword '{}' needs a number, not '{}'", key, val));
-    return utils::numeric(FLERR, val.c_str(), false, lmp);
-  };
-  auto positive = [&](const std::string &key, const std::string &val, const char *what) {
-    const double v = number(key, val);
-    if (!(v > 0.0)) illegal(fmt::format("keyword '{}' must be > 0 ({}), not {}", key, what, val));
-    return v;
-  };
-  auto integer = [&](const std::string &key, const std::string &val) {
-    if (!utils::is_integer(val) || utils::inumeric(FLERR, val.c_str(), false, lmp) <= 0)
-      illegal(fmt::format("keyword '{}' needs a positive integer, not '{}'", key, val));
-    return utils::inumeric(FLERR, val.c_str(), false, lmp);
-  };
-  coupler::ContinuumSettings &c = *settings;
-  bool pic_given = false;
-  std::vector<std::string> constants_given;    // material constants on the fix line (not with 'material')
-  int iarg = 3;
-  while (iarg < narg) {
-    const std::string key = arg[iarg];
-    if (iarg + 2 > narg) illegal(fmt::format("keyword '{}' needs a value", key));
-    const std::string val = arg[iarg + 1];
-    int used = 2;
-    if (key == "youngs" || key == "poisson" || key == "friction" || key == "mu_s" || key == "mu_2" || key == "I0" ||
-        key == "critical_packing")
-      constants_given.push_back(key);
-    if (key == "cell") cell = positive(key, val, "the MPM grid cell size");
-    else if (key == "material") {
-      try {
-        material = std::make_unique<coupler::CalibratedMaterial>(
-            coupler::read_material_file(coupler::find_material_file(val)));
-      } catch (const std::exception &e) {
-        illegal(fmt::format("keyword 'material': {}", e.what()));
-      }
-      if (material->dimension != domain->dimension)
-        illegal(fmt::format("keyword 'material': {} was calibrated in {}D, this run is {}D", val, material->dimension,
-                            domain->dimension));
-    }
-    else if (key == "continuum") region_ids.push_back(val);
-    else if (key == "discrete") discrete_region_ids.push_back(val);
-    else if (key == "hybrid_width") hybrid_width = integer(key, val);
-    else if (key == "weight") {
-      c.grain_weight = number(key, val);
-      if (!(c.grain_weight > 0.0 && c.grain_weight < 1.0))
-        illegal(fmt::format("keyword 'weight' (the share of a hybrid cell's mass its grains keep) must be "
-                            "between 0 and 1, not {}", val));
-    } else if (key == "model") {
-      if (val == "drucker_prager") model = coupler::kModelDruckerPrager;
-      else if (val == "mu_i") model = coupler::kModelMuI;
-      else illegal(fmt::format("keyword 'model' must be drucker_prager or mu_i, not '{}'", val));
-    } else if (key == "youngs") c.youngs_modulus = positive(key, val, "Pa");
-    else if (key == "poisson") {
-      c.poisson_ratio = number(key, val);
-      if (!(c.poisson_ratio > -1.0 && c.poisson_ratio < 0.5))
-        illegal(fmt::format("keyword 'poisson' must be in (-1, 0.5), not {}", val));
-    } else if (key == "friction") {
-      c.friction_angle_deg = number(key, val);
-      if (!(c.friction_angle_deg >= 0.0 && c.friction_angle_deg < 90.0))
-        illegal(fmt::format("keyword 'friction' (friction angle, degrees) must be in [0, 90), not {}", val));
-    } else if (key == "mu_s") c.mu_s = positive(key, val, "static friction of mu(I)");
-    else if (key == "mu_2") c.mu_2 = positive(key, val, "limit friction of mu(I)");
-    else if (key == "I0") c.I0 = positive(key, val, "inertial number scale of mu(I)");
-    else if (key == "diameter") c.grain_diameter = positive(key, val, "grain diameter, m"), diameter_given = true;
-    else if (key == "grain_density") c.grain_density = positive(key, val, "kg/m^3"), density_given = true;
-    else if (key == "critical_packing") {
-      c.critical_packing = number(key, val);
-      if (!(c.critical_packing > 0.0 && c.critical_packing < 1.0))
-        illegal(fmt::format("keyword 'critical_packing' must be in (0, 1), not {}", val));
-    } else if (key == "wall") {
-      if (val == "sticky") c.wall_contact = coupler::kWallSticky;
-      else if (val == "slip") c.wall_contact = coupler::kWallSlip;
-      else if (val == "friction") {
-        if (iarg + 3 > narg) illegal("keyword 'wall friction' needs the friction coefficient");
-        c.wall_contact = coupler::kWallFriction;
-        c.wall_friction = number("wall friction", arg[iarg + 2]);
-        if (c.wall_friction < 0.0) illegal("keyword 'wall friction' needs a coefficient >= 0");
-        used = 3;
-      } else illegal(fmt::format("keyword 'wall' must be sticky, slip or friction MU, not '{}'", val));
-    } else if (key == "container") {
-      // xlo xhi ylo yhi (zlo zhi): walls of the continuum; INF = the box face
-      const int nval = 2 * domain->dimension;
-      if (iarg + 1 + nval > narg)
-        illegal(fmt::format("keyword 'container' needs {} values (xlo xhi ylo yhi{}; INF = the box face)", nval,
-                            domain->dimension == 3 ? " zlo zhi" : ""));
-      for (int k = 0; k < nval; k++) {
-        const std::string v = arg[iarg + 1 + k];
-        container_given[k] = v != "INF" && v != "EDGE";
-        if (container_given[k]) container_value[k] = number("container", v);
-      }
-      used = 1 + nval;
-    } else if (key == "touch") {
-      // a container face the continuum may reach (its wall law stands for the DEM wall)
-      const int nfaces = 2 * domain->dimension;
-      const int f = static_cast<int>(std::find(kFaceNames, kFaceNames + 6, val) - kFaceNames);
-      if (val == "all")
-        for (int k = 0; k < nfaces; k++) c.touched_faces |= coupler::face_bit(k / 2, k % 2);
-      else if (f < nfaces) c.touched_faces |= coupler::face_bit(f / 2, f % 2);
-      else if (f < 6)
-        illegal(fmt::format("keyword 'touch' face '{}' needs a 3D box (a 2D box has no z faces)", val));
-      else
-        illegal(fmt::format("keyword 'touch' needs a container face ({}, {}, {}, {}{} or all), not '{}'",
-                            kFaceNames[0], kFaceNames[1], kFaceNames[2], kFaceNames[3],
-                            nfaces == 6 ? ", zlo, zhi" : "", val));
-    } else if (key == "cfl") {
-      c.cfl = number(key, val);
-      if (!(c.cfl > 0.0 && c.cfl <= 1.0)) illegal(fmt::format("keyword 'cfl' must be in (0, 1], not {}", val));
-    } else if (key == "pic") {
-      pic_given = true;
-      c.pic = number(key, val);
-      if (!(c.pic >= 0.0 && c.pic <= 1.0)) illegal(fmt::format("keyword 'pic' must be in [0, 1], not {}", val));
-    } else if (key == "support") {
-      c.support_gain = number(key, val);
-      if (!(c.support_gain >= 0.0 && c.support_gain <= 1.0))
-        illegal(fmt::format("keyword 'support' (gain of the support force between exchanges) must be in [0, 1], "
-                            "not {}", val));
-    } else if (key == "points_per_cell") {
-      c.points_per_axis = integer(key, val);
-      if (c.points_per_axis > 4) illegal("keyword 'points_per_cell' (points per cell and axis) must be 1 to 4");
-    } else if (key == "inertia") inertia = positive(key, val, "I = inertia m r^2");
-    else if (key == "output") {
-      if (iarg + 3 > narg) illegal("keyword 'output' needs a file name and an interval in exchanges");
-      output_path = val;
-      c.output_every = integer("output", arg[iarg + 2]);
-      if (output_path.size() >= sizeof(c.output_path))
-        illegal(fmt::format("keyword 'output': the file name is longer than {} characters", sizeof(c.output_path) - 1));
-      coupler::set_text(c.output_path, output_path);
-      used = 3;
-    } else if (key == "adaptive") adapt_every = integer(key, val);
-    else if (set_oracle_keyword(key, val)) {
-    } else if (key == "grain_type") grain_type = integer(key, val);
-    else if (key == "seed") template_seed = integer(key, val);
-    else if (key == "relax") {
-      relax_time = number(key, val);
-      if (!(relax_time >= 0.0))
-        illegal(fmt::format("keyword 'relax' (relaxation time of the velocity agreement, s; 0 = close the gap at "
-                            "every exchange) must be >= 0, not {}", val));
-    } else if (key == "steps_per_contact") {
-      warn_steps_per_contact = number(key, val);
-      if (!(warn_steps_per_contact > coupler::kUnstableStepsPerContact))
-        illegal(fmt::format("keyword 'steps_per_contact' (warn below this many DEM steps per contact) must exceed "
-                            "pi/2, where velocity Verlet goes unstable, not {}", val));
-    }
-    else if (key == "rezone_log") set_rezone_log(val);
-    else if (key == "mpm_state") mpm_state_path = val;
-    else if (key == "every") every = integer(key, val);
-    else if (key == "timeout") reply_timeout = positive(key, val, "seconds");
-    else if (key == "idle") {
-      idle_timeout = number(key, val);
-      if (idle_timeout < 0.0)
-        illegal(fmt::format("keyword 'idle' must be >= 0 seconds (0 = wait forever), not {}", val));
-    } else
-      illegal(fmt::format("unknown keyword '{}' (known keywords: {})", key, kKeywords));
-    iarg += used;
+  // fix ID group hybrid/mpm keyword value ...: the options (coupler/fix_options.hpp)
+  try {
+    opt = std::make_unique<coupler::FixOptions>(coupler::parse_fix_options(
+        std::vector<std::string>(arg + 3, arg + narg), domain->dimension, atom->ntypes,
+        [&](const std::string &rid) { return domain->find_region(rid) >= 0; }));
+  } catch (const coupler::OptionError &e) {
+    illegal(e.what());
   }
-  if (cell <= 0.0) illegal("keyword 'cell' (the MPM grid cell size) is required");
-  if (material && !constants_given.empty())
-    illegal(fmt::format("keyword '{}' conflicts with 'material', which sets the continuum's constants from the "
-                        "calibration; leave one out", constants_given.front()));
-  for (const auto &[kind, ids] : named_regions())
-    for (const auto &rid : *ids)
-      if (domain->find_region(rid) < 0)
-        illegal(fmt::format("{} region '{}' does not exist (define it with the region command first)", kind, rid));
-  if (!discrete_region_ids.empty() && adapt_every <= 0)
-    illegal("keyword 'discrete' needs adaptive zones (keyword 'adaptive'): with fixed zones, leave the region "
-            "out of the continuum regions instead");
-  if (c.touched_faces != 0 && adapt_every <= 0)
-    illegal("keyword 'touch' needs adaptive zones (keyword 'adaptive'): with fixed zones, the continuum regions "
-            "decide where the continuum is");
-  if (inertia < 0.0) inertia = domain->dimension == 2 ? 0.5 : 0.4;
-  if (adapt_every > 0 && adapt_every % every != 0)
-    illegal(fmt::format("keyword 'adaptive' ({} steps) must be a multiple of 'every' ({}): zones change right "
-                        "after an exchange", adapt_every, every));
-  check_oracle();
-  // With moving zones the hybrid band lies inside the flow: taking the agreed field there
-  // (pic 1) erases the grains' fluctuations at every exchange and damps the flow (a column
-  // collapse ran out 35 % short); the impulse-only rule of docs/design.md section 5 keeps them.
-  if (adapt_every > 0 && !pic_given) c.pic = 0.0;
-  if (grain_type > atom->ntypes)
-    illegal(fmt::format("keyword 'grain_type' {} is not an atom type (1 to {})", grain_type, atom->ntypes));
 
   nevery = 1;               // the support force acts every step; exchanges every `every` steps
   scalar_flag = 1;           // f_ID = number of completed exchanges with the MPM process
@@ -364,7 +177,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   check_box();
 
   // per-atom stress*volume for the Love-Weber stress of new material points
-  if (!region_ids.empty() || adapt_every > 0) {
+  if (!opt->continuum_regions.empty() || opt->adapt_every > 0) {
     stress_id = utils::strdup(std::string(id) + "_hybrid_stress");
     modify->add_compute(fmt::format("{} all stress/atom NULL virial", stress_id));
   }
@@ -435,7 +248,7 @@ void FixHybridMPM::check_gravity() const
 {
   double now[3];
   dem_gravity(now);
-  const double *then = settings->gravity;
+  const double *then = opt->continuum.gravity;
   const double scale = std::max(std::sqrt(then[0] * then[0] + then[1] * then[1] + then[2] * then[2]),
                                 std::sqrt(now[0] * now[0] + now[1] * now[1] + now[2] * now[2]));
   bool same = true;
@@ -484,7 +297,7 @@ void FixHybridMPM::init()
     error->all(FLERR, "Fix hybrid/mpm requires units si (the MPM process works in SI units)");
   if (atom->molecular != Atom::ATOMIC)
     error->all(FLERR, "Fix hybrid/mpm does not support molecular systems (grains only)");
-  if (!region_ids.empty() || adapt_every > 0) {
+  if (!opt->continuum_regions.empty() || opt->adapt_every > 0) {
     for (int d = 0; d < domain->dimension; d++)
       if (domain->boundary[d][0] != 1 || domain->boundary[d][1] != 1)
         error->all(FLERR, fmt::format("Fix hybrid/mpm with continuum regions or adaptive zones needs fixed boundaries ('f') in "
@@ -521,7 +334,7 @@ void FixHybridMPM::check_dem_timestep(const std::string &when)
 {
   std::string why;
   const double steps = dem_steps_per_contact(why);
-  if (steps >= warn_steps_per_contact || steps >= 0.9 * fewest_steps_warned) return;
+  if (steps >= opt->warn_steps_per_contact || steps >= 0.9 * fewest_steps_warned) return;
   fewest_steps_warned = steps;
   if (comm->me == 0)
     error->warning(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s resolves the contacts poorly {}: {}",
@@ -549,19 +362,19 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
     timestep_checked = true;
     return BIG;
   }
-  const bool splits = !region_ids.empty() || adapt_every > 0;
+  const bool splits = !opt->continuum_regions.empty() || opt->adapt_every > 0;
   double local = BIG, lightest = BIG;
   for (int i = 0; i < atom->nlocal; i++) {
     local = std::min(local, atom->rmass[i]);
     if (splits && (atom->mask[i] & groupbit))
-      local = std::min(local, atom->rmass[i] / weight[i] * settings->grain_weight);
+      local = std::min(local, atom->rmass[i] / weight[i] * opt->continuum.grain_weight);
   }
   MPI_Allreduce(&local, &lightest, 1, MPI_DOUBLE, MPI_MIN, world);
   if (lightest >= BIG) return BIG;
 
   coupler::HookeanContact contact = HookeanConstants::of(pair);
   contact.m_eff = 0.5 * lightest;
-  contact.inertia = inertia;
+  contact.inertia = opt->inertia;
   const double tc = coupler::contact_time(contact), steps = tc / update->dt;
   const std::string what =
       fmt::format("the stiffest contact (pair style {}: kn = {:.6g} N/m, kt = {:.6g} N/m, gamma_n = {:.6g} 1/s; "
@@ -574,7 +387,7 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
   timestep_checked = true;
   why = fmt::format("{}, and {:.3g} steps per contact ({}) {}. Use timestep {:.6g} (tc/{:g}) or less", what, steps,
                     steps < coupler::kUnstableStepsPerContact ? "fewer than pi/2"
-                                                              : fmt::format("fewer than {:g}", warn_steps_per_contact),
+                                                              : fmt::format("fewer than {:g}", opt->warn_steps_per_contact),
                     steps < coupler::kUnstableStepsPerContact
                         ? "make velocity Verlet unstable"
                         : "resolve it poorly (a collision's energy balance drifts; keyword steps_per_contact sets "
@@ -600,8 +413,8 @@ void FixHybridMPM::grain_defaults()
   }
   MPI_Allreduce(sums, all, 3, MPI_DOUBLE, MPI_SUM, world);
   const bigint n = group->count(igroup);
-  if (n > 0 && !diameter_given) settings->grain_diameter = all[0] / n;
-  if (all[2] > 0 && !density_given) settings->grain_density = all[1] / all[2];
+  if (n > 0 && !opt->diameter_given) opt->continuum.grain_diameter = all[0] / n;
+  if (all[2] > 0 && !opt->density_given) opt->continuum.grain_density = all[1] / all[2];
 
   // grains made from points: the size spread, type and groups of the grains there are
   double range[2] = {-BIG, -BIG}, range_all[2];    // -min diameter, max diameter
@@ -621,10 +434,10 @@ void FixHybridMPM::grain_defaults()
     // the template's radii are uniform in mean (1 +- p); it needs p < 0.5
     polydispersity = std::min(0.45, (dmax - dmin) / (dmax + dmin));
     new_grain_mask = all_mask | 1 | groupbit;
-    if (grain_type == 0) grain_type = type_all;
+    if (opt->grain_type == 0) opt->grain_type = type_all;
   } else {
     new_grain_mask = 1 | groupbit;
-    if (grain_type == 0) grain_type = 1;
+    if (opt->grain_type == 0) opt->grain_type = 1;
   }
 }
 
@@ -635,7 +448,7 @@ void FixHybridMPM::grain_defaults()
 
 void FixHybridMPM::apply_material()
 {
-  const coupler::CalibratedMaterial &m = *material;
+  const coupler::CalibratedMaterial &m = *opt->material;
   Pair *pair = force->pair_match("^gran/hooke", 0);
   if (!pair)
     error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for pair style {}, the deck uses {}; "
@@ -649,61 +462,21 @@ void FixHybridMPM::apply_material()
   deck.kt = hooke.kt;
   deck.gamman = hooke.gamman;
   deck.gammat = HookeanConstants::tangential_damping(pair);
-  const double r = 0.5 * settings->grain_diameter;
-  deck.mean_mass = settings->grain_density * (domain->dimension == 2 ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r);
+  const double r = 0.5 * opt->continuum.grain_diameter;
+  deck.mean_mass = opt->continuum.grain_density * (domain->dimension == 2 ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r);
   const std::string mismatch = coupler::contact_mismatch(m, deck);
   if (!mismatch.empty())
     error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for another contact law ({}); "
                                   "measure the continuum's constants for this one (docs/design.md section 4.6)",
                                   m.path, mismatch));
-  coupler::apply_material(m, hooke.kn, settings->grain_diameter, *settings);
+  coupler::apply_material(m, hooke.kn, opt->continuum.grain_diameter, opt->continuum);
   if (comm->me == 0)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: material {} ({}): Young's modulus {:.6g} Pa, Poisson's ratio "
                                     "{:.3g}, friction angle {:.4g} deg, mu_s {:.4g}, mu_2 {:.4g}, I0 {:.4g}, "
                                     "critical packing {:.4g}\n",
-                                    m.name, m.path, settings->youngs_modulus, settings->poisson_ratio,
-                                    settings->friction_angle_deg, settings->mu_s, settings->mu_2, settings->I0,
-                                    settings->critical_packing));
-}
-
-/* ----------------------------------------------------------------------
-   the zone oracle's keywords: on the fix line and with fix_modify
-------------------------------------------------------------------------- */
-
-bool FixHybridMPM::set_oracle_keyword(const std::string &key, const std::string &val)
-{
-  double *target = nullptr;
-  double lo = 0.0, hi = BIG;
-  const char *what = "";
-  if (key == "depth") target = &oracle->continuum_depth, what = "continuum deeper than depth + band, m";
-  else if (key == "band") target = &oracle->band, what = "half width of the hybrid band, m";
-  else if (key == "surface_packing") target = &oracle->surface_packing, hi = 1.0, what = "a packing fraction";
-  else if (key == "dilute") target = &oracle->dilute_packing, hi = 1.0, what = "a packing fraction";
-  else if (key == "shear_rate") target = &oracle->max_shear_rate, what = "cells shearing faster are discrete, 1/s";
-  else return false;
-  if (!utils::is_double(val)) illegal(fmt::format("keyword '{}' needs a number, not '{}'", key, val));
-  const double v = utils::numeric(FLERR, val.c_str(), false, lmp);
-  if (!(v > lo && v < hi))
-    illegal(fmt::format("keyword '{}' ({}) must be in ({}, {}), not {}", key, what, lo, hi == BIG ? "inf" : "1", val));
-  *target = v;
-  return true;
-}
-
-void FixHybridMPM::check_oracle()
-{
-  if (adapt_every <= 0) return;
-  // Defaults: continuum three cells below surfaces and walls, a hybrid band one cell wide on either side.
-  if (oracle->band <= 0.0) oracle->band = cell;
-  if (oracle->continuum_depth <= 0.0) oracle->continuum_depth = 3.0 * cell;
-  // A continuum cell never borders a discrete one if the band is wider than the distance of
-  // neighbouring cell centres (coupler/oracle.hpp, update_zones)
-  const double closest = 0.5 * sqrt(static_cast<double>(domain->dimension)) * cell;
-  if (!(oracle->band > closest))
-    illegal(fmt::format("keyword 'band' ({}) must exceed {:.4g} (sqrt({})/2 cells), or continuum cells may "
-                        "border discrete ones", oracle->band, closest, domain->dimension));
-  if (!(oracle->continuum_depth > oracle->band))
-    illegal(fmt::format("keyword 'depth' ({}) must exceed 'band' ({}): the cells at the free surface must stay "
-                        "discrete", oracle->continuum_depth, oracle->band));
+                                    m.name, m.path, opt->continuum.youngs_modulus, opt->continuum.poisson_ratio,
+                                    opt->continuum.friction_angle_deg, opt->continuum.mu_s, opt->continuum.mu_2, opt->continuum.I0,
+                                    opt->continuum.critical_packing));
 }
 
 int FixHybridMPM::modify_param(int narg, char **arg)
@@ -715,17 +488,22 @@ int FixHybridMPM::modify_param(int narg, char **arg)
     set_rezone_log(arg[1]);
     return 2;
   }
-  if (!set_oracle_keyword(arg[0], arg[1])) return 0;
-  check_oracle();
+  try {
+    if (!coupler::set_oracle_option(opt->oracle, arg[0], arg[1])) return 0;
+    coupler::check_oracle_options(*opt, domain->dimension);
+  } catch (const coupler::OptionError &e) {
+    illegal(e.what());
+  }
   return 2;
 }
 
 void FixHybridMPM::set_rezone_log(const std::string &value)
 {
-  const auto level = coupler::parse_rezone_log(value);
-  if (!level)
-    illegal(fmt::format("keyword 'rezone_log' must be {}, not '{}'", coupler::kRezoneLogValues, value));
-  rezone_log = *level;
+  try {
+    opt->rezone_log = coupler::rezone_log_option(value);
+  } catch (const coupler::OptionError &e) {
+    illegal(e.what());
+  }
 }
 
 /* ----------------------------------------------------------------------
@@ -741,7 +519,7 @@ void FixHybridMPM::log_rezone(const coupler::RezoneReport &report, int source, c
   run_rezones->add(report);
   const bool conversion = source != coupler::kZonesOracle;
   if (comm->me != 0) return;
-  if (rezone_log == coupler::RezoneLog::kFull || (rezone_log == coupler::RezoneLog::kSummary && conversion)) {
+  if (opt->rezone_log == coupler::RezoneLog::kFull || (opt->rezone_log == coupler::RezoneLog::kSummary && conversion)) {
     utils::logmesg(lmp, coupler::rezone_line(report) + "\n");
     utils::logmesg(lmp, coupler::rezone_totals_line(report.step, before, after) + "\n");
   }
@@ -751,7 +529,7 @@ void FixHybridMPM::log_rezone(const coupler::RezoneReport &report, int source, c
 void FixHybridMPM::log_rezone_summary(bool end_of_run)
 {
   coupler::RezoneTally &tally = end_of_run ? *run_rezones : *interval_rezones;
-  const bool shown = end_of_run || rezone_log != coupler::RezoneLog::kQuiet;
+  const bool shown = end_of_run || opt->rezone_log != coupler::RezoneLog::kQuiet;
   if (comm->me == 0 && shown && tally.rezones() > 0)
     utils::logmesg(lmp, tally.summary_line(end_of_run ? coupler::kSummaryRun : coupler::kSummaryInterval,
                                            update->ntimestep) + "\n");
@@ -763,26 +541,26 @@ void FixHybridMPM::log_rezone_summary(bool end_of_run)
 void FixHybridMPM::connect()
 {
   grain_defaults();
-  if (material) apply_material();
+  if (opt->material) apply_material();
   // With cells under 2 grain diameters the oracle's packing fraction per cell counts one or two
   // grains and a cell's rests land on a few points: a published 2D collapse with 1.74 d cells
   // went non-finite as its continuum shrank (issue 14), while the same scene ran with 5 d cells.
   // (2 % slack: a deck's cell of 2 nominal diameters passes whatever its grains' sampled mean)
-  if (adapt_every > 0 && cell < 0.98 * kSmallestCellInGrains * settings->grain_diameter)
+  if (opt->adapt_every > 0 && opt->cell < 0.98 * kSmallestCellInGrains * opt->continuum.grain_diameter)
     error->all(FLERR, fmt::format("Fix hybrid/mpm: cell {} is under {} grain diameters (mean diameter {:.4g}): adaptive "
                                   "zones need cells that hold several grains. Use cell {:.4g} or more",
-                                  cell, kSmallestCellInGrains, settings->grain_diameter,
-                                  kSmallestCellInGrains * settings->grain_diameter));
+                                  opt->cell, kSmallestCellInGrains, opt->continuum.grain_diameter,
+                                  kSmallestCellInGrains * opt->continuum.grain_diameter));
   coupler::Hello hello;
   coupler::set_text(hello.host, fmt::format("LAMMPS {}", lmp->version));
   coupler::set_text(hello.units, update->unit_style);
   hello.dimension = domain->dimension;
-  hello.model = model;
-  hello.mpm_every = every;
-  hello.cell = cell;
+  hello.model = opt->model;
+  hello.mpm_every = opt->every;
+  hello.cell = opt->cell;
   hello.dt = update->dt;
-  hello.reply_timeout = reply_timeout;
-  hello.idle_timeout = idle_timeout;
+  hello.reply_timeout = opt->reply_timeout;
+  hello.idle_timeout = opt->idle_timeout;
   for (int d = 0; d < 3; d++) {
     hello.box_lo[d] = domain->boxlo[d];
     hello.box_hi[d] = domain->boxhi[d];
@@ -791,15 +569,15 @@ void FixHybridMPM::connect()
   hello.time = dem_time();
   // gravity of the grains acts on the continuum too (and sets the energy ledger's potential
   // energy); read once here, checked at every later run's setup
-  dem_gravity(settings->gravity);
+  dem_gravity(opt->continuum.gravity);
   // the agreement's relaxation time: half the stiffest contact's duration, the time over which
   // grains in contact equalise their velocities (10 steps where the contact time is unknown)
-  if (relax_time < 0.0) {
+  if (opt->relax_time < 0.0) {
     std::string why;
     const double steps = dem_steps_per_contact(why);
-    settings->agreement_time = 0.5 * (steps < BIG ? steps : 20.0) * update->dt;
-  } else settings->agreement_time = relax_time;
-  hello.continuum = *settings;
+    opt->continuum.agreement_time = 0.5 * (steps < BIG ? steps : 20.0) * update->dt;
+  } else opt->continuum.agreement_time = opt->relax_time;
+  hello.continuum = opt->continuum;
   for (int d = 0; d < 3; d++)
     for (int side = 0; side < 2; side++) {
       const double v = container_edge(d, side);
@@ -819,12 +597,12 @@ void FixHybridMPM::connect()
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: handshake ok with the MPM process ({} rank(s)): {}; "
                                     "protocol {}, release {}, cell {}, model {}, exchange every {} step(s)\n",
                                     link->remote_size(), link->peer_info(), coupler::kProtocolVersion,
-                                    coupler::release_version(), cell, coupler::model_name(model), every));
-  if (comm->me == 0 && settings->touched_faces != 0) {
+                                    coupler::release_version(), opt->cell, coupler::model_name(opt->model), opt->every));
+  if (comm->me == 0 && opt->continuum.touched_faces != 0) {
     std::string faces;
     for (int f = 0; f < 6; f++)
-      if (settings->touched_faces & coupler::face_bit(f / 2, f % 2))
-        faces += std::string(faces.empty() ? "" : " ") + kFaceNames[f];
+      if (opt->continuum.touched_faces & coupler::face_bit(f / 2, f % 2))
+        faces += std::string(faces.empty() ? "" : " ") + coupler::kFaceNames[f];
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: the continuum may touch the container faces {} (its wall law "
                                     "there); the other faces are discrete boundaries\n", faces));
   }
@@ -836,21 +614,21 @@ void FixHybridMPM::connect()
 
 void FixHybridMPM::compute_zones()
 {
-  const std::vector<Region *> regions = prematched(region_ids);
+  const std::vector<Region *> regions = prematched(opt->continuum_regions);
   auto inside = [&](const auto &x) { return in_any(regions, x[0], x[1], x.size() == 3 ? x[2] : 0.0); };
   if (domain->dimension == 2) {
-    const auto grid = box_grid<2>(domain, cell);
+    const auto grid = box_grid<2>(domain, opt->cell);
     zones = coupler::zones_from_regions<2>(grid, Eigen::Map<const Vec<2>>(domain->boxlo),
-                                            Eigen::Map<const Vec<2>>(domain->boxhi), hybrid_width, inside);
+                                            Eigen::Map<const Vec<2>>(domain->boxhi), opt->hybrid_width, inside);
   } else {
-    const auto grid = box_grid<3>(domain, cell);
+    const auto grid = box_grid<3>(domain, opt->cell);
     zones = coupler::zones_from_regions<3>(grid, Eigen::Map<const Vec<3>>(domain->boxlo),
-                                            Eigen::Map<const Vec<3>>(domain->boxhi), hybrid_width, inside);
+                                            Eigen::Map<const Vec<3>>(domain->boxhi), opt->hybrid_width, inside);
   }
-  if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
-  if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, cell));
-  else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, cell));
-  if (comm->me == 0 && !region_ids.empty()) {
+  if (opt->continuum_regions.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
+  if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, opt->cell));
+  else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, opt->cell));
+  if (comm->me == 0 && !opt->continuum_regions.empty()) {
     // cells of the box only (the padding cells around it are continuum by convention)
     bigint n[3] = {0, 0, 0};
     double centre[3] = {0, 0, 0};
@@ -858,7 +636,7 @@ void FixHybridMPM::compute_zones()
       cell_centre(c, centre);
       bool in_box = true;    // overlapping it: a face may lie off the cell lattice
       for (int d = 0; d < domain->dimension; d++)
-        in_box = in_box && centre[d] + 0.5 * cell > domain->boxlo[d] && centre[d] - 0.5 * cell < domain->boxhi[d];
+        in_box = in_box && centre[d] + 0.5 * opt->cell > domain->boxlo[d] && centre[d] - 0.5 * opt->cell < domain->boxhi[d];
       if (in_box) n[zones[c]]++;
     }
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} grid cells in the box: {} continuum, {} hybrid, {} discrete\n",
@@ -875,8 +653,8 @@ void FixHybridMPM::compute_zones()
 std::vector<std::uint64_t> FixHybridMPM::discrete_cells()
 {
   std::vector<std::uint64_t> cells;
-  if (discrete_region_ids.empty()) return cells;
-  const std::vector<Region *> regions = prematched(discrete_region_ids);
+  if (opt->discrete_regions.empty()) return cells;
+  const std::vector<Region *> regions = prematched(opt->discrete_regions);
   double centre[3] = {0.0, 0.0, 0.0};
   for (std::size_t c = 0; c < zones.size(); ++c) {
     cell_centre(c, centre);
@@ -892,7 +670,7 @@ std::vector<std::uint64_t> FixHybridMPM::discrete_cells()
 
 std::array<std::pair<const char *, const std::vector<std::string> *>, 2> FixHybridMPM::named_regions() const
 {
-  return {{{"continuum", &region_ids}, {"discrete", &discrete_region_ids}}};
+  return {{{"continuum", &opt->continuum_regions}, {"discrete", &opt->discrete_regions}}};
 }
 
 std::vector<Region *> FixHybridMPM::prematched(const std::vector<std::string> &ids) const
@@ -948,12 +726,12 @@ coupler::GrainTransfer<3> &FixHybridMPM::transfer<3>()
 
 double FixHybridMPM::next_exchange_time(bool force_output) const
 {
-  const bigint now = update->ntimestep, next = now + every;
+  const bigint now = update->ntimestep, next = now + opt->every;
   if (force_output) return -1.0;
-  if (adapt_every > 0 && converted && now % adapt_every == 0 && now < update->laststep) return -1.0;    // a rezone
+  if (opt->adapt_every > 0 && converted && now % opt->adapt_every == 0 && now < update->laststep) return -1.0;    // a rezone
   if (output->restart_flag && output->next_restart >= now && output->next_restart < next) return -1.0;
   if (next <= update->laststep) return dem_time(next);
-  if (settings->output_every > 0 && update->laststep > now) return dem_time(update->laststep);    // end-of-run frame
+  if (opt->continuum.output_every > 0 && update->laststep > now) return dem_time(update->laststep);    // end-of-run frame
   return -1.0;
 }
 
@@ -1020,11 +798,11 @@ void FixHybridMPM::setup(int /*vflag*/)
   rezone_pending = false;
   interval_rezones->restart(update->ntimestep + 1);
   run_rezones->restart(update->ntimestep + 1);
-  if (!converted && (!region_ids.empty() || adapt_every > 0))
-    schedule_rezone(region_ids.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
-  if (adapt_every > 0) {
+  if (!converted && (!opt->continuum_regions.empty() || opt->adapt_every > 0))
+    schedule_rezone(opt->continuum_regions.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
+  if (opt->adapt_every > 0) {
     // the Love-Weber stress of the first oracle step needs its per-atom virial
-    const bigint first = (update->ntimestep / adapt_every + 1) * adapt_every;
+    const bigint first = (update->ntimestep / opt->adapt_every + 1) * opt->adapt_every;
     stress_compute()->addstep(first);
   }
 }
@@ -1097,12 +875,12 @@ const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
   if constexpr (D == 2) {
     if (!template2)
       template2 = std::make_unique<coupler::PackingTemplate<2>>(
-          coupler::make_packing_template<2>(10, polydispersity, static_cast<std::uint32_t>(template_seed)));
+          coupler::make_packing_template<2>(10, polydispersity, static_cast<std::uint32_t>(opt->template_seed)));
     return *template2;
   } else {
     if (!template3)
       template3 = std::make_unique<coupler::PackingTemplate<3>>(
-          coupler::make_packing_template<3>(6, polydispersity, static_cast<std::uint32_t>(template_seed)));
+          coupler::make_packing_template<3>(6, polydispersity, static_cast<std::uint32_t>(opt->template_seed)));
     return *template3;
   }
 }
@@ -1152,7 +930,7 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
   for (std::size_t j = 0; j < making.size(); ++j) {
     const auto &cell = cells[making[j]];
     const auto c = coupler::cell_coords<D>(grid, cell.cell);
-    for (const auto &g : coupler::template_candidates<D>(cell.cell, grid, tmpl, settings->grain_diameter)) {
+    for (const auto &g : coupler::template_candidates<D>(cell.cell, grid, tmpl, opt->continuum.grain_diameter)) {
       if (!(coupler::occupancy_bit<D>(grid, c, g.x) & cell.occupancy)) continue;    // no material there
       // inside the continuum's container (where its points are held; a silo's floor blocks lie
       // outside it, and a grain made inside a wall would be shot out by the wall's contact)
@@ -1193,7 +971,7 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
     for (std::size_t n = 0; n < candidates[j].size(); ++n) {
       coupler::NewGrain<D> g = candidates[j][n];
       // a gap of coupler::kTemplateGap diameters, as between template grains
-      const double fit = room_all[offset[j] + n] - coupler::kTemplateGap * settings->grain_diameter;
+      const double fit = room_all[offset[j] + n] - coupler::kTemplateGap * opt->continuum.grain_diameter;
       if (fit < kSmallestShrink * g.radius) continue;
       g.radius = std::min(g.radius, fit);
       kept.push_back(g);
@@ -1231,7 +1009,7 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
       bool mine = true;
       for (int a = 0; a < D; ++a) mine = mine && coord[a] >= domain->sublo[a] && coord[a] < domain->subhi[a];
       if (!mine) continue;
-      atom->avec->create_atom(grain_type, coord);
+      atom->avec->create_atom(opt->grain_type, coord);
       const int n = atom->nlocal - 1;
       atom->mask[n] = new_grain_mask;
       atom->radius[n] = g.radius;
@@ -1241,7 +1019,7 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
       weight[n] = share;
       auto &sum = sums[making[j]];
       sum.solid.moments.cell = sum.carried.moments.cell = cell.cell;
-      sum.solid.add_body(g.x, g.v, g.mass, coupler::Spin<D>::Zero(), inertia * g.radius * g.radius, Mat::Zero(), centre);
+      sum.solid.add_body(g.x, g.v, g.mass, coupler::Spin<D>::Zero(), opt->inertia * g.radius * g.radius, Mat::Zero(), centre);
       made++;
     }
   }
@@ -1251,13 +1029,12 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
 double FixHybridMPM::solid_mass(double radius) const
 {
   const double volume = domain->dimension == 2 ? coupler::grain_volume<2>(radius) : coupler::grain_volume<3>(radius);
-  return settings->grain_density * volume;
+  return opt->continuum.grain_density * volume;
 }
 
 double FixHybridMPM::container_edge(int axis, int side) const
 {
-  const int k = 2 * axis + side;
-  return container_given[k] ? container_value[k] : side ? domain->boxhi[axis] : domain->boxlo[axis];
+  return opt->container_edge(axis, side, domain->boxlo, domain->boxhi);
 }
 
 /* ----------------------------------------------------------------------
@@ -1318,7 +1095,7 @@ void FixHybridMPM::rezone(int source)
       link->send_struct(0, coupler::kTagStep, h, "the rezone header" + at);
       if (source == coupler::kZonesGiven) link->send_array(0, coupler::kTagZones, zones, "the zone map" + at);
       else {
-        link->send_struct(0, coupler::kTagOracle, *oracle, "the oracle settings" + at);
+        link->send_struct(0, coupler::kTagOracle, opt->oracle, "the oracle settings" + at);
         link->send_array(0, coupler::kTagDiscreteCells, discrete_cells(), "the cells of the discrete regions" + at);
       }
     }
@@ -1363,7 +1140,7 @@ void FixHybridMPM::rezone(int source)
       const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
       const Vec<D> centre = coupler::cell_center<D>(grid, c), xi = Eigen::Map<const Vec<D>>(x[i]),
                    vi = Eigen::Map<const Vec<D>>(v[i]);
-      const double e = inertia * radius[i] * radius[i], solid = solid_mass(radius[i]);
+      const double e = opt->inertia * radius[i] * radius[i], solid = solid_mass(radius[i]);
       auto &sum = sums[static_cast<std::size_t>(k)];
       sum.carried.moments.cell = sum.solid.moments.cell = cells[k].cell;
       sum.carried.add_body(xi, vi, rmass[i], rmass[i] * e * omega_i, e, sv, centre);
@@ -1489,7 +1266,7 @@ void FixHybridMPM::rezone(int source)
   report.grains_deleted = all[0];
   report.points_made = ack.points_made;
   report.hybrid_grains = all[2];
-  report.weight = settings->grain_weight;
+  report.weight = opt->continuum.grain_weight;
   report.grains_made = all[1];
   report.moved_cells = ack.moved_cells;
   report.continuum_cells = ack.zone_cells[coupler::kContinuum];
@@ -1526,16 +1303,16 @@ void FixHybridMPM::end_of_step()
     }
   ledger.support_open += kicked;
   const bigint step = update->ntimestep;
-  const bool oracle_next = adapt_every > 0 && converted && (step + 1) % adapt_every == 0;
+  const bool oracle_next = opt->adapt_every > 0 && converted && (step + 1) % opt->adapt_every == 0;
   if (oracle_next) stress_compute()->addstep(step + 1);    // its virial
   // LAMMPS prints its thermo output right after this step's end_of_step (Output::write)
   if (output->next_thermo == step) log_rezone_summary(false);
-  if (step % every != 0) return;
+  if (step % opt->every != 0) return;
   if (domain->dimension == 2) exchange<2>(false);
   else exchange<3>(false);
   // the zone oracle right after this exchange (the MPM process did not advance past it),
   // unless the run ends here: the next run's setup reorders the atoms
-  if (adapt_every > 0 && converted && step % adapt_every == 0 && step < update->laststep)
+  if (opt->adapt_every > 0 && converted && step % opt->adapt_every == 0 && step < update->laststep)
     schedule_rezone(coupler::kZonesOracle);
 }
 
@@ -1581,7 +1358,7 @@ void FixHybridMPM::exchange(bool force_output)
   coupled_grains = n_coupled;
 
   const bool output_frame =
-      settings->output_every > 0 && (force_output || (exchanges % settings->output_every) == 0);
+      opt->continuum.output_every > 0 && (force_output || (exchanges % opt->continuum.output_every) == 0);
   if (output_frame) last_output_step = update->ntimestep;
   int status = 0;
   std::string what;
@@ -1641,7 +1418,7 @@ void FixHybridMPM::apply_updates(const coupler::GrainView &view, const std::vect
       agreed[k].support[a] = updates[k].support[a];
     }
   std::vector<double> dv(index.size() * D), accel(index.size() * D);
-  transfer<D>().velocity_updates(view, agreed, settings->pic, dv.data(), accel.data());
+  transfer<D>().velocity_updates(view, agreed, opt->continuum.pic, dv.data(), accel.data());
   double **v = atom->v;
   const double *rmass = atom->rmass;
   for (int i : supported) support[i][0] = support[i][1] = support[i][2] = 0.0;
@@ -1737,7 +1514,7 @@ void FixHybridMPM::fail(const char *file, int line, int status, const char *what
 void FixHybridMPM::post_run()
 {
   // the state at the end of every run is in the output file (an exchange at this step)
-  if (link && settings->output_every > 0 && last_output_step != update->ntimestep) {
+  if (link && opt->continuum.output_every > 0 && last_output_step != update->ntimestep) {
     if (domain->dimension == 2) exchange<2>(true);
     else exchange<3>(true);
   }
@@ -1777,7 +1554,7 @@ void FixHybridMPM::grain_totals(double *all) const
     const double m = atom->rmass[i];
     local[0] += m;
     for (int a = 0; a < 3; a++) local[1 + a] += m * v[i][a];
-    const double I = inertia * m * atom->radius[i] * atom->radius[i];
+    const double I = opt->inertia * m * atom->radius[i] * atom->radius[i];
     local[4] += m * (x[i][1] * v[i][2] - x[i][2] * v[i][1]) + I * omega[i][0];
     local[5] += m * (x[i][2] * v[i][0] - x[i][0] * v[i][2]) + I * omega[i][1];
     local[6] += m * (x[i][0] * v[i][1] - x[i][1] * v[i][0]) + I * omega[i][2];
@@ -1835,12 +1612,12 @@ void FixHybridMPM::fill_thermo_vector()
 
 double FixHybridMPM::grain_energy() const
 {
-  const double *g = settings->gravity;
+  const double *g = opt->continuum.gravity;
   double **x = atom->x, **v = atom->v, **omega = atom->omega;
   double energy = 0.0;
   for (int i = 0; i < atom->nlocal; i++) {
     if (!(atom->mask[i] & groupbit)) continue;
-    const double m = atom->rmass[i], I = inertia * m * atom->radius[i] * atom->radius[i];
+    const double m = atom->rmass[i], I = opt->inertia * m * atom->radius[i] * atom->radius[i];
     double kinetic = 0.0, spin = 0.0, height = 0.0;
     for (int a = 0; a < 3; a++) {
       kinetic += v[i][a] * v[i][a];
@@ -1877,9 +1654,9 @@ void FixHybridMPM::write_restart(FILE *fp)
 {
   double list[6];
   int n = 0;
-  list[n++] = cell;
+  list[n++] = opt->cell;
   list[n++] = static_cast<double>(exchanges + restart_exchanges);
-  list[n++] = static_cast<double>(every);
+  list[n++] = static_cast<double>(opt->every);
   list[n++] = converted ? 1.0 : 0.0;
   list[n++] = dem_time();
   list[n++] = static_cast<double>(update->ntimestep);
@@ -1895,9 +1672,9 @@ void FixHybridMPM::write_restart(FILE *fp)
 void FixHybridMPM::restart(char *buf)
 {
   double *list = (double *) buf;
-  if (list[0] != cell && comm->me == 0)
+  if (list[0] != opt->cell && comm->me == 0)
     error->warning(FLERR, fmt::format("Fix hybrid/mpm: restart file has cell {}, the input says {}; using {}",
-                                      list[0], cell, cell));
+                                      list[0], opt->cell, opt->cell));
   restart_exchanges = static_cast<bigint>(list[1]);
   clock_time = list[4];
   clock_step = static_cast<bigint>(list[5]);
@@ -1906,7 +1683,7 @@ void FixHybridMPM::restart(char *buf)
     // grains already became points: the MPM process continues from the state saved with the file
     converted = true;
     restored = true;
-    if (mpm_state_path.empty())
+    if (opt->mpm_state_path.empty())
       error->all(FLERR, "Fix hybrid/mpm: the restart file was written after grains became material points; "
                         "add the keyword 'mpm_state FILE' with the MPM state written next to it "
                         "(<restart file>.mpm.h5)");
@@ -1925,7 +1702,7 @@ void FixHybridMPM::write_restart_file(const char *file)
 
 void FixHybridMPM::load_mpm_state()
 {
-  state_request(coupler::kStepLoad, mpm_state_path);
+  state_request(coupler::kStepLoad, opt->mpm_state_path);
   state_loaded = true;
 }
 

@@ -38,10 +38,9 @@ template <int D> struct BodySums;
 template <int D> struct GrainSums;
 struct CellGrains;
 struct OracleSettings;
-struct CalibratedMaterial;
+struct FixOptions;
 struct RezoneReport;
 class RezoneTally;
-enum class RezoneLog;
 }
 
 namespace LAMMPS_NS {
@@ -83,26 +82,8 @@ class FixHybridMPM : public Fix {
   static Fix *creator(LAMMPS *lmp, int narg, char **arg);
 
  private:
-  double cell;            // MPM grid cell size (distance units, m)
-  double reply_timeout;   // s LAMMPS waits for each reply of the MPM process
-  double idle_timeout;    // s the MPM process waits for the next message from LAMMPS
-  int model;              // coupler::ModelId
-  int every;              // exchange every this many steps
-  int hybrid_width;       // cells of hybrid zone inside the continuum regions' border
-  int adapt_every;        // run the zone oracle every this many steps (0 = fixed zones)
-  int grain_type;         // atom type of grains made from points (0 = the group's smallest)
-  int template_seed;      // seed of the packing template new grains are cut from
-  double inertia;         // moment of inertia factor of a grain (I = inertia m r^2)
-  std::vector<std::string> region_ids;     // continuum regions
-  std::vector<std::string> discrete_region_ids;    // regions kept discrete (oracle boundaries)
-  std::string output_path;                 // HDF5 file of grains and points ("" = none)
-  std::unique_ptr<coupler::ContinuumSettings> settings;
-  std::unique_ptr<coupler::OracleSettings> oracle;    // zone oracle of adaptive runs
-  std::unique_ptr<coupler::CalibratedMaterial> material;    // keyword material (null: constants from the fix line)
+  std::unique_ptr<coupler::FixOptions> opt;    // the fix line's keywords (coupler/fix_options.hpp)
   void apply_material();
-  bool diameter_given, density_given;      // mu(I) grain size and density from the fix line
-  bool container_given[6] = {false, false, false, false, false, false};    // xlo xhi ylo yhi zlo zhi
-  double container_value[6] = {0, 0, 0, 0, 0, 0};
   double container_edge(int axis, int side) const;    // the continuum's container (side 0 lo, 1 hi)
 
   std::unique_ptr<coupler::Link> link;    // connection to the MPM process (all ranks)
@@ -127,7 +108,6 @@ class FixHybridMPM : public Fix {
   double polydispersity;                  // of the group's diameters, for the packing template
   std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
   std::unique_ptr<coupler::PackingTemplate<3>> template3;
-  coupler::RezoneLog rezone_log;          // keyword rezone_log: how much of the rezones the log shows
   std::unique_ptr<coupler::RezoneTally> interval_rezones;    // since the last thermo output (rank 0 prints)
   std::unique_ptr<coupler::RezoneTally> run_rezones;         // since the start of the run
   void set_rezone_log(const std::string &value);
@@ -135,11 +115,8 @@ class FixHybridMPM : public Fix {
   void log_rezone_summary(bool end_of_run);
   bool timestep_checked;                  // the DEM time step was checked (and logged) once
   double fewest_steps_warned;             // steps per contact at the last warning
-  double warn_steps_per_contact;          // warn below this many DEM steps per contact (keyword steps_per_contact)
-  double relax_time;                      // keyword relax (s; < 0: half the stiffest contact's duration)
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
-  std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)
   double clock_time;                      // DEM time at clock_step (the coupling's clock)
   bigint clock_step;                      // -1 until the first setup
   double clock_dt;
@@ -183,8 +160,6 @@ class FixHybridMPM : public Fix {
   template <int D> void sum_over_ranks(std::vector<coupler::BodySums<D>> &sums);
   template <int D> const coupler::PackingTemplate<D> &packing_template();
   void schedule_rezone(int source);
-  bool set_oracle_keyword(const std::string &key, const std::string &val);
-  void check_oracle();
   double dem_steps_per_contact(std::string &why);
   void check_dem_timestep(const std::string &when);
   void store_atom_stress();

@@ -1,25 +1,11 @@
 #include "coupler/rezone_log.hpp"
 
 #include <algorithm>
-#include <charconv>
-#include <cstdio>
+
+#include "coupler/text.hpp"
 
 namespace coupler {
 namespace {
-
-// printf's %.<digits>g
-std::string general(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), "%.*g", digits, v);
-  return buf;
-}
-
-// the shortest text that reads back as v (as fmt's "{}")
-std::string shortest(double v) {
-  char buf[64];
-  const auto end = std::to_chars(buf, buf + sizeof(buf), v).ptr;
-  return std::string(buf, end);
-}
 
 std::string n(std::int64_t v) { return std::to_string(v); }
 
