@@ -38,6 +38,7 @@
 #include "GRANULAR/pair_gran_hooke_history.h"
 
 #include "coupler/conversion.hpp"
+#include "coupler/dem_session.hpp"
 #include "coupler/dem_timestep.hpp"
 #include "coupler/enrichment.hpp"
 #include "coupler/fix_options.hpp"
@@ -212,6 +213,7 @@ FixHybridMPM::~FixHybridMPM()
     if (comm->me == 0) error->warning(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
   }
   coupler::set_peer(nullptr);
+  session.reset();
   link.reset();
 }
 
@@ -593,6 +595,7 @@ void FixHybridMPM::connect()
     error->all(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
   }
   coupler::set_peer(link.get());
+  session = std::make_unique<coupler::DemSession>(*link, world, comm->me);
   if (comm->me == 0)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: handshake ok with the MPM process ({} rank(s)): {}; "
                                     "protocol {}, release {}, cell {}, model {}, exchange every {} step(s)\n",
@@ -1065,20 +1068,12 @@ template <int D>
 void FixHybridMPM::rezone(int source)
 {
   const auto &grid = transfer<D>().grid();
-  const std::string at = " of the rezone at step " + std::to_string(update->ntimestep);
   // as fix pour: atoms are created and deleted now, the ghosts are rebuilt after
   if (atom->map_style != Atom::MAP_NONE) atom->map_clear();
   atom->nghost = 0;
   atom->avec->clear_bonus();
 
-  int status = 0;
-  std::string what;
   coupler::StepAck ack;
-  auto mpm_error = [&](const coupler::Message &m) {
-    ack = m.as<coupler::StepAck>();
-    status = 2;
-    what = "the MPM process could not rezone: " + coupler::get_text(ack.message);
-  };
 
   double grains_before[7], grains_after[7];
   grain_totals(grains_before);
@@ -1088,33 +1083,10 @@ void FixHybridMPM::rezone(int source)
   const std::vector<coupler::CellGrains> volumes = cell_grains<D>();
   std::vector<signed char> new_zones;
   std::vector<coupler::RezoneCell<D>> cells;
-  try {
-    if (comm->me == 0) {
-      coupler::StepHeader h = step_header(coupler::kStepRezone);
-      h.zone_source = source;
-      link->send_struct(0, coupler::kTagStep, h, "the rezone header" + at);
-      if (source == coupler::kZonesGiven) link->send_array(0, coupler::kTagZones, zones, "the zone map" + at);
-      else {
-        link->send_struct(0, coupler::kTagOracle, opt->oracle, "the oracle settings" + at);
-        link->send_array(0, coupler::kTagDiscreteCells, discrete_cells(), "the cells of the discrete regions" + at);
-      }
-    }
-    link->send_array(0, coupler::kTagVolumes, volumes, "the grain volumes" + at);
-    const coupler::Message m = link->receive(0, {coupler::kTagZones, coupler::kTagStepAck}, "the new zone map" + at);
-    if (m.tag == coupler::kTagStepAck) mpm_error(m);
-    else {
-      new_zones = m.as_array<signed char>();
-      if (new_zones.size() != zones.size())
-        throw coupler::PeerError(fmt::format("protocol error: a zone map of {} cells for a grid of {}",
-                                             new_zones.size(), zones.size()));
-      cells = link->receive(0, {coupler::kTagRezoneCells}, "the cells to rezone" + at)
-                  .as_array<coupler::RezoneCell<D>>();
-    }
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  check_all(status, what);
+  coupler::StepHeader header = step_header(coupler::kStepRezone);
+  header.zone_source = source;
+  check(session->rezone_zones<D>(header, zones, opt->oracle, [&] { return discrete_cells(); }, volumes, zones.size(),
+                                 new_zones, cells, ack));
   zones = std::move(new_zones);
 
   // 2. the sums of the grains in the moving cells, before anything changes
@@ -1153,19 +1125,9 @@ void FixHybridMPM::rezone(int source)
 
   // 4. the MPM process answers what the grains of each cell become
   std::vector<coupler::GrainCorrection<D>> corrections;
-  try {
-    std::vector<coupler::GrainSums<D>> sum_list;
-    for (const auto &kv : sums) sum_list.push_back(kv.second);
-    link->send_array(0, coupler::kTagGrainSums, sum_list, "the grain sums" + at);
-    const coupler::Message m =
-        link->receive(0, {coupler::kTagCorrections, coupler::kTagStepAck}, "the grain corrections" + at);
-    if (m.tag == coupler::kTagStepAck) mpm_error(m);
-    else corrections = m.as_array<coupler::GrainCorrection<D>>();
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  check_all(status, what);
+  std::vector<coupler::GrainSums<D>> sum_list;
+  for (const auto &kv : sums) sum_list.push_back(kv.second);
+  check(session->rezone_corrections<D>(sum_list, corrections, ack));
 
   // 5. apply them: delete, or scale and add the rigid velocity increment
   double **x = atom->x, **v = atom->v, **omega = atom->omega;    // (new grains may have moved the arrays)
@@ -1214,16 +1176,7 @@ void FixHybridMPM::rezone(int source)
   for (int i = 0; i < atom->nlocal; i++)
     for (int a = 0; a < 3; a++) force_local[a] += atom->rmass[i] * support[i][a];
   MPI_Allreduce(force_local, force, 3, MPI_DOUBLE, MPI_SUM, world);
-  try {
-    if (comm->me == 0)
-      link->send_array(0, coupler::kTagSupport, std::vector<double>(force, force + 3), "the grains' support force" + at);
-    ack = link->receive(0, {coupler::kTagStepAck}, "the rezone's acknowledgement" + at).as<coupler::StepAck>();
-    if (ack.status != 0) status = 2, what = "the MPM process could not rezone: " + coupler::get_text(ack.message);
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  check_all(status, what);
+  check(session->rezone_finish(force, ack));
   *last_ack = ack;
 
   grain_totals(grains_after);
@@ -1360,42 +1313,16 @@ void FixHybridMPM::exchange(bool force_output)
   const bool output_frame =
       opt->continuum.output_every > 0 && (force_output || (exchanges % opt->continuum.output_every) == 0);
   if (output_frame) last_output_step = update->ntimestep;
-  int status = 0;
-  std::string what;
+  coupler::StepHeader h = step_header(coupler::kStepCouple);
+  h.output = output_frame ? 1 : 0;
+  h.n_grains = n_coupled;
+  h.next_time = next_exchange_time(force_output);
   coupler::StepAck ack;
-  std::vector<coupler::NodeUpdate> updates;
-  const std::string at_step = " of step " + std::to_string(update->ntimestep);
-  try {
-    if (comm->me == 0) {
-      coupler::StepHeader h = step_header(coupler::kStepCouple);
-      h.output = output_frame ? 1 : 0;
-      h.n_grains = n_coupled;
-      h.next_time = next_exchange_time(force_output);
-      link->send_struct(0, coupler::kTagStep, h, "the step header" + at_step);
-    }
-    link->send_array(0, coupler::kTagNodes, records, "the grain node sums" + at_step);
-    coupler::Message m = link->receive(0, {coupler::kTagNodeReply, coupler::kTagStepAck},
-                                       "the node velocities" + at_step);
-    if (m.tag == coupler::kTagNodeReply) {
-      updates = m.as_array<coupler::NodeUpdate>();
-      if (updates.size() != records.size())
-        throw coupler::PeerError(fmt::format("protocol error: {} node velocities for {} nodes", updates.size(),
-                                             records.size()));
-      apply_updates<D>(view, updates, index);
-      m = link->receive(0, {coupler::kTagStepAck}, "the acknowledgement" + at_step);
-    }
-    ack = m.as<coupler::StepAck>();
-    if (ack.status != 0)
-      status = 2, what = "the MPM process reported an error at step " + std::to_string(update->ntimestep) + ": " +
-                         coupler::get_text(ack.message);
-    else if (output_frame)
-      send_grains("the grains of the output frame" + at_step);
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
+  const coupler::StepOutcome outcome = session->exchange(
+      h, records, [&](const std::vector<coupler::NodeUpdate> &updates) { apply_updates<D>(view, updates, index); },
+      [&] { return frame_grains(); }, ack);
   last_step = update->ntimestep;
-  check_all(status, what);
+  check(outcome);
 
   *last_ack = ack;
   exchanges++;
@@ -1464,7 +1391,7 @@ void FixHybridMPM::post_neighbor()
    this rank's grains for an output frame of the MPM process's file
 ------------------------------------------------------------------------- */
 
-void FixHybridMPM::send_grains(const std::string &what)
+std::vector<coupler::GrainRecord> FixHybridMPM::frame_grains() const
 {
   const int nlocal = atom->nlocal;
   std::vector<coupler::GrainRecord> grains(nlocal);
@@ -1477,36 +1404,18 @@ void FixHybridMPM::send_grains(const std::string &what)
     g.weight = weight[i];
     g.zone = zone_of(atom->x[i]);
   }
-  link->send_array(0, coupler::kTagGrains, grains, what);
+  return grains;
 }
 
 /* ----------------------------------------------------------------------
-   collective outcome of an exchange: any rank's failure stops all ranks
-   with the message of the lowest failing rank
+   collective outcome of a step with the MPM process: any rank's failure
+   stops all ranks with the message of the lowest failing rank
 ------------------------------------------------------------------------- */
 
-void FixHybridMPM::check_all(int status, const std::string &what)
+void FixHybridMPM::check(const coupler::StepOutcome &mine)
 {
-  int worst = 0;
-  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, world);
-  if (worst == 0) return;
-  int mine = status != 0 ? comm->me : comm->nprocs, first = 0;
-  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, world);
-  char text[coupler::kTextSize * 2] = {};
-  if (comm->me == first) coupler::set_text(text, what);
-  MPI_Bcast(text, sizeof(text), MPI_CHAR, first, world);
-  int first_status = status;
-  MPI_Bcast(&first_status, 1, MPI_INT, first, world);
-  fail(FLERR, first_status, text);
-}
-/* ---------------------------------------------------------------------- */
-
-void FixHybridMPM::fail(const char *file, int line, int status, const char *what)
-{
-  // a peer that did not answer is presumed hung: the finalize hook aborts the job
-  if (status == 1) link->mark_unresponsive();
-  else link->mark(coupler::Link::State::kConnected);
-  error->all(file, line, fmt::format("Fix hybrid/mpm: {}", what));
+  const coupler::StepOutcome all = session->settle(mine);
+  if (!all.ok()) error->all(FLERR, "Fix hybrid/mpm: " + all.what);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -1708,39 +1617,8 @@ void FixHybridMPM::load_mpm_state()
 
 void FixHybridMPM::state_request(int kind, const std::string &path)
 {
-  int status = 0;
-  std::string what;
   coupler::StepAck ack;
-  const char *verb = kind == coupler::kStepSave ? "saving" : "loading";
-  try {
-    if (comm->me == 0) {
-      coupler::StepHeader h = step_header(kind);
-      coupler::StateRequest request;
-      if (path.size() >= sizeof(request.path))
-        throw coupler::PeerError(fmt::format("the MPM state path {} is too long", path));
-      coupler::set_text(request.path, path);
-      request.exchanges = exchanges + restart_exchanges;
-      link->send_struct(0, coupler::kTagStep, h, "the state request header");
-      link->send_struct(0, coupler::kTagState, request, "the state request");
-    }
-    coupler::Message m = link->receive(0, {coupler::kTagStepAck, coupler::kTagZones},
-                                       fmt::format("the MPM process {} its state", verb));
-    if (m.tag == coupler::kTagZones) {    // a loaded state's zones come first
-      auto loaded = m.as_array<signed char>();
-      if (loaded.size() != zones.size())
-        throw coupler::PeerError(fmt::format("protocol error: a zone map of {} cells for a grid of {}",
-                                             loaded.size(), zones.size()));
-      zones = std::move(loaded);
-      m = link->receive(0, {coupler::kTagStepAck}, fmt::format("the MPM process {} its state", verb));
-    }
-    ack = m.as<coupler::StepAck>();
-    if (ack.status != 0) status = 2, what = fmt::format("{} the MPM state failed: {}", verb,
-                                                         coupler::get_text(ack.message));
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  check_all(status, what);
+  check(session->state_request(step_header(kind), path, exchanges + restart_exchanges, zones, ack));
   *last_ack = ack;
   if (comm->me == 0)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: MPM state {} {} ({} material points)\n",

@@ -24,6 +24,9 @@ FixStyle(hybrid/mpm,FixHybridMPM);
 
 namespace coupler {
 class Link;
+class DemSession;
+struct StepOutcome;
+struct GrainRecord;
 struct ContinuumSettings;
 struct StepAck;
 struct StepHeader;
@@ -87,6 +90,7 @@ class FixHybridMPM : public Fix {
   double container_edge(int axis, int side) const;    // the continuum's container (side 0 lo, 1 hi)
 
   std::unique_ptr<coupler::Link> link;    // connection to the MPM process (all ranks)
+  std::unique_ptr<coupler::DemSession> session;    // the messages over it (coupler/dem_session.hpp)
   bigint exchanges;                       // completed step exchanges (all runs)
   bigint restart_exchanges;               // exchanges read from a restart file
   bigint last_step;                       // last step seen (for the finish message)
@@ -169,10 +173,10 @@ class FixHybridMPM : public Fix {
   void apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
                      const std::vector<int> &index);
   void collect_supported();
-  void send_grains(const std::string &what);
+  std::vector<coupler::GrainRecord> frame_grains() const;    // this rank's grains for an output frame
   void load_mpm_state();
   void state_request(int kind, const std::string &path);
-  void check_all(int status, const std::string &what);
+  void check(const coupler::StepOutcome &mine);    // every rank's outcome; an error if any rank failed
   void compute_zones();
   int zone_of(const double *x) const;
   double dem_time() const;
@@ -187,7 +191,6 @@ class FixHybridMPM : public Fix {
   void grain_defaults();
   void fill_thermo_vector();
   void grain_totals(double *all) const;
-  void fail(const char *file, int line, int status, const char *what);
   [[noreturn]] void illegal(const std::string &why);
 };
 
