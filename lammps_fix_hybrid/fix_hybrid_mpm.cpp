@@ -38,6 +38,9 @@
 #include "GRANULAR/pair_gran_hooke_history.h"
 
 #include "coupler/conversion.hpp"
+#include "coupler/dem_grains.hpp"
+#include "coupler/dem_ledger.hpp"
+#include "coupler/dem_rezone.hpp"
 #include "coupler/dem_session.hpp"
 #include "coupler/dem_timestep.hpp"
 #include "coupler/enrichment.hpp"
@@ -94,16 +97,6 @@ struct HookeanConstants : PairGranHookeHistory {
   }
 };
 
-// Thermo vector entries (docs/fix_hybrid_mpm.md)
-enum {
-  kVecExchanges, kVecCoupledGrains, kVecPoints, kVecSharedNodes, kVecMismatch, kVecSubsteps, kVecMpmDt,
-  kVecMass, kVecPx, kVecPy, kVecPz, kVecLx, kVecLy, kVecLz, kVecContinuumKE, kVecContinuumCells, kVecHybridCells,
-  kVecDiscreteCells,
-  // the energy ledger (J, J/m in 2D), as of the last exchange or rezone
-  kVecEnergy, kVecEnergyGrains, kVecEnergyContinuum, kVecEnergyDem, kVecEnergyContinuumSteps, kVecEnergyAgreementGrains,
-  kVecEnergyAgreementContinuum, kVecEnergySupport, kVecEnergyRezoneGrains, kVecEnergyRezoneContinuum,
-  kVecEnergyResidual, kVecSize
-};
 
 template <int D>
 using Vec = Eigen::Matrix<double, D, 1>;
@@ -113,18 +106,6 @@ coupler::GridGeometry<D> box_grid(const Domain *domain, double cell)
 {
   return coupler::padded_grid<D>(Eigen::Map<const Vec<D>>(domain->boxlo), Eigen::Map<const Vec<D>>(domain->boxhi),
                                  cell);
-}
-
-/// The slot `slots` gives the grid cell holding position x; -1 off the grid or for a cell it
-/// does not list.
-template <int D>
-std::int64_t slot_of_cell_at(const coupler::GridGeometry<D> &grid, const double *x,
-                             const std::map<std::uint64_t, std::size_t> &slots)
-{
-  const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(x));
-  if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return -1;
-  const auto it = slots.find(coupler::cell_index<D>(grid, c));
-  return it == slots.end() ? -1 : static_cast<std::int64_t>(it->second);
 }
 
 }    // namespace
@@ -144,7 +125,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     new_grain_mask(1), polydispersity(0.0), interval_rezones(new coupler::RezoneTally),
     run_rezones(new coupler::RezoneTally), timestep_checked(false), fewest_steps_warned(BIG), restored(false),
     state_loaded(false), clock_time(0.0), clock_step(-1), clock_dt(0.0), stress_id(nullptr),
-    last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger_started(false), continuum_start(0.0)
+    last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger(new coupler::EnergyLedger), ledger_started(false), continuum_start(0.0)
 {
   // fix ID group hybrid/mpm keyword value ...: the options (coupler/fix_options.hpp)
   try {
@@ -160,7 +141,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   global_freq = 1;           // a count, valid on any step
   extscalar = 0;
   vector_flag = 1;           // f_ID[i]: hybrid counts, residual and totals (docs)
-  size_vector = kVecSize;
+  size_vector = coupler::kVecSize;
   extvector = 0;
   restart_global = 1;
   restart_peratom = 1;
@@ -792,7 +773,7 @@ void FixHybridMPM::setup(int /*vflag*/)
   if (zones.empty()) compute_zones();
   if (restored && !state_loaded) load_mpm_state();
   if (!ledger_started) {
-    ledger.start = ledger.energy = grain_energy();
+    ledger->start = ledger->energy = grain_energy();
     continuum_start = last_ack->energy;
     ledger_started = true;
   }
@@ -844,32 +825,6 @@ void FixHybridMPM::pre_exchange()
   converted = true;
 }
 
-/* ----------------------------------------------------------------------
-   this rank's grains per grid cell: their volume (the oracle's packing
-   fraction) and carried mass, sparse: only cells holding grains
-------------------------------------------------------------------------- */
-
-template <int D>
-std::vector<coupler::CellGrains> FixHybridMPM::cell_grains()
-{
-  const auto &grid = transfer<D>().grid();
-  std::map<std::size_t, coupler::CellGrains> cells;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(atom->x[i]));
-    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) continue;
-    const std::size_t k = coupler::cell_index<D>(grid, c);
-    auto &g = cells[k];
-    g.cell = k;
-    g.volume += coupler::grain_volume<D>(atom->radius[i]);
-    g.mass += atom->rmass[i];
-  }
-  std::vector<coupler::CellGrains> out;
-  out.reserve(cells.size());
-  for (const auto &kv : cells) out.push_back(kv.second);
-  return out;
-}
-
 template <int D>
 const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
 {
@@ -889,169 +844,72 @@ const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
 }
 
 /* ----------------------------------------------------------------------
-   enrichment, in the cells whose zone wants grains and which have too few
-   for the material there (or, discrete, hold points): new grains are cut
-   from the packing template where the points are and where no grain of any
-   rank is in the way, nearest the points' centre first, as many as the
-   cell's material (points plus old grains) fills at their solid mass; each
-   is made at its weight times its solid mass, with the continuum's affine
-   velocity. Their sums join those of the cell's old grains in `sums`: the
-   MPM process then corrects old and new grains together (rezone step 4).
-   All ranks compute the same grains; each makes those in its sub-domain.
-   Returns the number this rank made.
+   enrichment (coupler::plan_new_grains, the same list on every rank): each
+   rank makes the planned grains in its sub-domain, at their weight times
+   their solid mass, and adds them to their cell's sums (the MPM process
+   then corrects old and new grains together). Returns how many it made.
 ------------------------------------------------------------------------- */
 
 template <int D>
 bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
                                  std::map<std::size_t, coupler::GrainSums<D>> &sums)
 {
-  using Mat = Eigen::Matrix<double, D, D>;
-  const auto &grid = transfer<D>().grid();
-  bigint made = 0;
-  std::vector<std::size_t> making;    // planned cells that make grains
-  for (std::size_t k = 0; k < cells.size(); ++k)
-    if (cells[k].make_grains) making.push_back(k);
-  if (making.empty()) return made;
-
-  // the old grains of these cells, over all ranks: what they carry, and their sums at their
-  // solid mass (as members of the new body set)
-  std::vector<coupler::BodySums<D>> carried(making.size()), solid(making.size());
-  for (std::size_t j = 0; j < making.size(); ++j) {
-    const auto it = sums.find(making[j]);
-    if (it != sums.end()) carried[j] = it->second.carried, solid[j] = it->second.solid;
-  }
-  double **x = atom->x;
-  const int nlocal = atom->nlocal;
-  sum_over_ranks<D>(carried);
-  sum_over_ranks<D>(solid);
-
-  // candidates of every such cell (the same list on every rank)
-  const auto &tmpl = packing_template<D>();
-  std::vector<std::vector<coupler::NewGrain<D>>> candidates(making.size());
-  std::map<std::size_t, std::vector<std::pair<std::size_t, std::size_t>>> by_cell;    // cell -> (j, index)
-  double largest = 0.0;
-  for (std::size_t j = 0; j < making.size(); ++j) {
-    const auto &cell = cells[making[j]];
-    const auto c = coupler::cell_coords<D>(grid, cell.cell);
-    for (const auto &g : coupler::template_candidates<D>(cell.cell, grid, tmpl, opt->continuum.grain_diameter)) {
-      if (!(coupler::occupancy_bit<D>(grid, c, g.x) & cell.occupancy)) continue;    // no material there
-      // inside the continuum's container (where its points are held; a silo's floor blocks lie
-      // outside it, and a grain made inside a wall would be shot out by the wall's contact)
-      bool inside = true;
-      for (int a = 0; a < D; ++a)
-        inside = inside && g.x[a] - g.radius >= container_edge(a, 0) && g.x[a] + g.radius <= container_edge(a, 1);
-      if (!inside) continue;
-      by_cell[cell.cell].emplace_back(j, candidates[j].size());
-      candidates[j].push_back(g);
-      largest = std::max(largest, g.radius);
-    }
-  }
-  // room of each candidate: the largest radius no grain (of any group: walls of frozen grains
-  // too) overlaps. A candidate a grain overlaps a little shrinks to fit, down to
-  // kSmallestShrink of its size, so the new packing closes up with the old one; one that would
-  // have to shrink more is dropped.
-  std::vector<std::size_t> offset(making.size() + 1, 0);
-  for (std::size_t j = 0; j < making.size(); ++j) offset[j + 1] = offset[j] + candidates[j].size();
-  std::vector<double> room(offset.back(), BIG), room_all(offset.back(), BIG);
-  for (int i = 0; i < nlocal; i++) {
-    const Vec<D> xi = Eigen::Map<const Vec<D>>(x[i]);
-    const int reach = static_cast<int>(std::ceil((atom->radius[i] + largest) / grid.dx));
-    coupler::for_each_cell_within<D>(grid, coupler::cell_of<D>(grid, xi), reach, [&](std::uint64_t cell) {
-      const auto it = by_cell.find(cell);
-      if (it == by_cell.end()) return;
-      for (const auto &[j, n] : it->second) {
-        double &r = room[offset[j] + n];
-        r = std::min(r, (candidates[j][n].x - xi).norm() - atom->radius[i]);
-      }
-    });
-  }
-  MPI_Allreduce(room.data(), room_all.data(), static_cast<int>(room.size()), MPI_DOUBLE, MPI_MIN, world);
-
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; a++) lo[a] = container_edge(a, 0), hi[a] = container_edge(a, 1);
+  const auto planned = coupler::plan_new_grains<D>(transfer<D>().grid(), cells, sums, grains(), packing_template<D>(),
+                                                   grain_rules(), opt->continuum.grain_diameter, lo, hi, world);
   const double zmid = 0.5 * (domain->boxlo[2] + domain->boxhi[2]);
-  for (std::size_t j = 0; j < making.size(); ++j) {
-    const auto &cell = cells[making[j]];
-    std::vector<coupler::NewGrain<D>> kept;
-    for (std::size_t n = 0; n < candidates[j].size(); ++n) {
-      coupler::NewGrain<D> g = candidates[j][n];
-      // a gap of coupler::kTemplateGap diameters, as between template grains
-      const double fit = room_all[offset[j] + n] - coupler::kTemplateGap * opt->continuum.grain_diameter;
-      if (fit < kSmallestShrink * g.radius) continue;
-      g.radius = std::min(g.radius, fit);
-      kept.push_back(g);
-    }
-    coupler::CellMoments<D> material = cell.points;
-    material.add(carried[j].moments);
-    if (!(material.mass > 0)) continue;
-    // the new grains move with the continuum's affine field about its centre of mass
-    const Vec<D> centre = coupler::cell_center<D>(grid, coupler::cell_coords<D>(grid, cell.cell));
-    const Vec<D> about = cell.points.mass > 0 ? Vec<D>(cell.points.first_moment() / cell.points.mass) : centre;
-    const Vec<D> drift = cell.points.mass > 0 ? Vec<D>(cell.points.momentum() / cell.points.mass) : Vec<D>::Zero();
-    const Mat gradient = Eigen::Map<const Mat>(cell.gradient);
-    // as many new grains as the material fills at their solid mass, nearest its centre first
-    // (the same order on every rank)
-    std::stable_sort(kept.begin(), kept.end(), [&](const auto &a, const auto &b) {
-      return (a.x - about).squaredNorm() < (b.x - about).squaredNorm();
-    });
-    double filled = solid[j].moments.mass;    // the old grains' and the fitted new ones' solid mass
-    std::size_t fitted = 0;
-    for (auto &g : kept) {
-      g.mass = solid_mass(g.radius);
-      if (filled + 0.5 * g.mass > material.mass) break;
-      g.v = drift + gradient * (g.x - about);
-      g.omega.setZero();
-      filled += g.mass;
-      ++fitted;
-    }
-    kept.resize(fitted);
-    // made at their weight times their solid mass, with the affine field's velocity: the MPM
-    // process corrects them with the cell's old grains (their sums go with those)
-    const double share = cell.grain_weight;
-    for (const auto &g : kept) {
-      double coord[3] = {0.0, 0.0, zmid};
-      for (int a = 0; a < D; ++a) coord[a] = g.x[a];
-      bool mine = true;
-      for (int a = 0; a < D; ++a) mine = mine && coord[a] >= domain->sublo[a] && coord[a] < domain->subhi[a];
-      if (!mine) continue;
-      atom->avec->create_atom(opt->grain_type, coord);
-      const int n = atom->nlocal - 1;
-      atom->mask[n] = new_grain_mask;
-      atom->radius[n] = g.radius;
-      atom->rmass[n] = share * g.mass;
-      for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? g.v[a] : 0.0, atom->omega[n][a] = 0.0;
-      modify->create_attribute(n);    // every fix's per-atom data (pair history, ours)
-      weight[n] = share;
-      auto &sum = sums[making[j]];
-      sum.solid.moments.cell = sum.carried.moments.cell = cell.cell;
-      sum.solid.add_body(g.x, g.v, g.mass, coupler::Spin<D>::Zero(), opt->inertia * g.radius * g.radius, Mat::Zero(), centre);
-      made++;
-    }
+  bigint made = 0;
+  for (const auto &p : planned) {
+    const auto &g = p.grain;
+    double coord[3] = {0.0, 0.0, zmid};
+    for (int a = 0; a < D; ++a) coord[a] = g.x[a];
+    bool mine = true;
+    for (int a = 0; a < D; ++a) mine = mine && coord[a] >= domain->sublo[a] && coord[a] < domain->subhi[a];
+    if (!mine) continue;
+    atom->avec->create_atom(opt->grain_type, coord);
+    const int n = atom->nlocal - 1;
+    atom->mask[n] = new_grain_mask;
+    atom->radius[n] = g.radius;
+    atom->rmass[n] = p.share * g.mass;
+    for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? g.v[a] : 0.0, atom->omega[n][a] = 0.0;
+    modify->create_attribute(n);    // every fix's per-atom data (pair history, ours)
+    weight[n] = p.share;
+    coupler::add_new_grain<D>(sums, cells, p, grain_rules());
+    made++;
   }
   return made;
 }
 
 double FixHybridMPM::solid_mass(double radius) const
 {
-  const double volume = domain->dimension == 2 ? coupler::grain_volume<2>(radius) : coupler::grain_volume<3>(radius);
-  return opt->continuum.grain_density * volume;
+  return grain_rules().solid_mass(radius);
+}
+
+coupler::GrainRules FixHybridMPM::grain_rules() const
+{
+  coupler::GrainRules rules;
+  rules.dimension = domain->dimension;
+  rules.density = opt->continuum.grain_density;
+  rules.inertia = opt->inertia;
+  return rules;
+}
+
+coupler::DemGrains FixHybridMPM::grains() const
+{
+  coupler::DemGrains g;
+  g.n = atom->nlocal;
+  g.x = atom->x, g.v = atom->v, g.omega = atom->omega;
+  g.radius = atom->radius, g.rmass = atom->rmass;
+  g.mask = atom->mask, g.groupbit = groupbit;
+  g.weight = weight;
+  g.stress = atom_stress;
+  return g;
 }
 
 double FixHybridMPM::container_edge(int axis, int side) const
 {
   return opt->container_edge(axis, side, domain->boxlo, domain->boxhi);
-}
-
-/* ----------------------------------------------------------------------
-   sums of the same cells over all DEM ranks (every field but the cell index)
-------------------------------------------------------------------------- */
-
-template <int D>
-void FixHybridMPM::sum_over_ranks(std::vector<coupler::BodySums<D>> &sums)
-{
-  constexpr std::size_t values = coupler::kBodySumsValues<D>;
-  std::vector<double> local(sums.size() * values), all(sums.size() * values);
-  for (std::size_t k = 0; k < sums.size(); ++k) coupler::pack_summed_fields<D>(sums[k], &local[k * values]);
-  MPI_Allreduce(local.data(), all.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, world);
-  for (std::size_t k = 0; k < sums.size(); ++k) coupler::unpack_summed_fields<D>(&all[k * values], sums[k]);
 }
 
 /* ----------------------------------------------------------------------
@@ -1080,7 +938,7 @@ void FixHybridMPM::rezone(int source)
   close_dem_bracket();
 
   // 1. zones: the grains' volume per cell goes to the MPM process, which runs the oracle
-  const std::vector<coupler::CellGrains> volumes = cell_grains<D>();
+  const std::vector<coupler::CellGrains> volumes = coupler::cell_grains<D>(grid, grains());
   std::vector<signed char> new_zones;
   std::vector<coupler::RezoneCell<D>> cells;
   coupler::StepHeader header = step_header(coupler::kStepRezone);
@@ -1090,35 +948,9 @@ void FixHybridMPM::rezone(int source)
   zones = std::move(new_zones);
 
   // 2. the sums of the grains in the moving cells, before anything changes
-  std::map<std::uint64_t, std::size_t> slot;
-  for (std::size_t k = 0; k < cells.size(); ++k) slot.emplace(cells[k].cell, k);
-  auto cell_of_atom = [&](int i) { return slot_of_cell_at<D>(grid, atom->x[i], slot); };
-  const int nlocal_old = atom->nlocal;
-  std::map<std::size_t, coupler::GrainSums<D>> sums;
-  {
-    double **x = atom->x, **v = atom->v, **omega = atom->omega;
-    double *rmass = atom->rmass, *radius = atom->radius;
-    for (int i = 0; i < nlocal_old; i++) {
-      if (!(atom->mask[i] & groupbit)) continue;
-      const std::int64_t k = cell_of_atom(i);
-      if (k < 0) continue;
-      coupler::Spin<D> omega_i;
-      if constexpr (D == 2) omega_i[0] = omega[i][2];
-      else omega_i = Eigen::Map<const Eigen::Vector3d>(omega[i]);
-      Eigen::Matrix<double, D, D> sv;
-      const double *sa = atom_stress[i];    // xx yy zz xy xz yz
-      if constexpr (D == 2) sv << sa[0], sa[3], sa[3], sa[1];
-      else sv << sa[0], sa[3], sa[4], sa[3], sa[1], sa[5], sa[4], sa[5], sa[2];
-      const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
-      const Vec<D> centre = coupler::cell_center<D>(grid, c), xi = Eigen::Map<const Vec<D>>(x[i]),
-                   vi = Eigen::Map<const Vec<D>>(v[i]);
-      const double e = opt->inertia * radius[i] * radius[i], solid = solid_mass(radius[i]);
-      auto &sum = sums[static_cast<std::size_t>(k)];
-      sum.carried.moments.cell = sum.solid.moments.cell = cells[k].cell;
-      sum.carried.add_body(xi, vi, rmass[i], rmass[i] * e * omega_i, e, sv, centre);
-      sum.solid.add_body(xi, vi, solid, solid * e * omega_i, e, Eigen::Matrix<double, D, D>::Zero(), centre);
-    }
-  }
+  const coupler::CellSlots slots = coupler::cell_slots<D>(cells);
+  std::map<std::size_t, coupler::GrainSums<D>> sums =
+      coupler::moving_grain_sums<D>(grid, cells, slots, grains(), grain_rules());
 
   // 3. enrichment (collective over the DEM ranks): new grains, their sums with the old ones'
   const bigint made_local = make_grains<D>(cells, sums);
@@ -1130,37 +962,10 @@ void FixHybridMPM::rezone(int source)
   check(session->rezone_corrections<D>(sum_list, corrections, ack));
 
   // 5. apply them: delete, or scale and add the rigid velocity increment
-  double **x = atom->x, **v = atom->v, **omega = atom->omega;    // (new grains may have moved the arrays)
-  double *rmass = atom->rmass;
-  std::map<std::uint64_t, const coupler::GrainCorrection<D> *> correction_of;
-  for (const auto &gc : corrections) correction_of[gc.cell] = &gc;
-  std::vector<char> remove(atom->nlocal, 0);
-  bigint hybrid_local = 0;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const std::int64_t k = cell_of_atom(i);
-    if (k < 0) continue;
-    const auto it = correction_of.find(cells[k].cell);
-    if (it == correction_of.end()) continue;
-    const coupler::GrainCorrection<D> &gc = *it->second;
-    if (gc.remove) {
-      remove[i] = 1;
-      continue;
-    }
-    coupler::RigidCorrection<D> fix;
-    fix.mass_factor = gc.mass_factor;
-    fix.velocity = Eigen::Map<const Vec<D>>(gc.velocity);
-    fix.omega = Eigen::Map<const coupler::Spin<D>>(gc.omega);
-    fix.centre = Eigen::Map<const Vec<D>>(gc.centre);
-    const Vec<D> dv = fix.increment(Eigen::Map<const Vec<D>>(x[i]));
-    for (int a = 0; a < D; ++a) v[i][a] += dv[a];
-    if constexpr (D == 2) omega[i][2] += fix.omega[0];
-    else
-      for (int a = 0; a < 3; a++) omega[i][a] += fix.omega[a];
-    rmass[i] = gc.mass_factor * solid_mass(atom->radius[i]);    // the correction scales the solid sums
-    weight[i] = gc.weight;
-    if (gc.weight < 1.0) hybrid_local++;
-  }
+  coupler::DemGrains now = grains();    // (new grains may have moved the arrays)
+  std::int64_t hybrid_local = 0;
+  const std::vector<char> remove =
+      coupler::apply_corrections<D>(grid, cells, slots, corrections, now, grain_rules(), hybrid_local);
   bigint deleted_local = 0;
   AtomVec *avec = atom->avec;
   for (int i = static_cast<int>(remove.size()) - 1; i >= 0; i--)    // as fix evaporate: the last atom fills the gap
@@ -1181,17 +986,12 @@ void FixHybridMPM::rezone(int source)
 
   grain_totals(grains_after);
   const double energy_after = grain_energy();
-  ledger.rezone += energy_after - ledger.energy;
-  ledger.energy = energy_after;
+  ledger->close_rezone(energy_after);
   // how far the carried masses drifted from the grains' share of their solid mass
-  double drift[2] = {-BIG, 0.0}, drift_all[2];    // -lightest, heaviest
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double f = atom->rmass[i] / (weight[i] * solid_mass(atom->radius[i]));
-    drift[0] = std::max(drift[0], -f), drift[1] = std::max(drift[1], f);
-  }
+  double drift[2], drift_all[2];    // -lightest, heaviest
+  coupler::mass_drift(grains(), grain_rules(), drift);
   MPI_Allreduce(drift, drift_all, 2, MPI_DOUBLE, MPI_MAX, world);
-  bigint local[3] = {deleted_local, made_local, hybrid_local}, all[3];
+  bigint local[3] = {deleted_local, made_local, static_cast<bigint>(hybrid_local)}, all[3];
   MPI_Allreduce(local, all, 3, MPI_LMP_BIGINT, MPI_SUM, world);
   // as fix deposit and fix pour do: made grains must not overflow the atom count or the IDs
   if (all[1] > all[0] && all[1] - all[0] > MAXBIGINT - atom->natoms)
@@ -1254,7 +1054,7 @@ void FixHybridMPM::end_of_step()
       kicked += rmass[i] * (v[i][a] + 0.5 * dv) * dv;
       v[i][a] += dv;
     }
-  ledger.support_open += kicked;
+  ledger->support_open += kicked;
   const bigint step = update->ntimestep;
   const bool oracle_next = opt->adapt_every > 0 && converted && (step + 1) % opt->adapt_every == 0;
   if (oracle_next) stress_compute()->addstep(step + 1);    // its virial
@@ -1279,16 +1079,11 @@ void FixHybridMPM::exchange(bool force_output)
 {
   double **x = atom->x, **v = atom->v;
   double *rmass = atom->rmass;
-  int *mask = atom->mask;
-  const int nlocal = atom->nlocal;
 
   // coupled grains: hybrid grains, and any grain of the group inside a hybrid or continuum cell
-  std::vector<int> index;
+  const std::vector<int> index = coupler::coupled_grains(grains(), [&](const double *xi) { return zone_of(xi); });
   std::vector<double> xs, vs, ms;
-  for (int i = 0; i < nlocal; i++) {
-    if (!(mask[i] & groupbit)) continue;
-    if (weight[i] >= 1.0 && zone_of(x[i]) == coupler::kDiscrete) continue;
-    index.push_back(i);
+  for (int i : index) {
     xs.insert(xs.end(), x[i], x[i] + 3);
     vs.insert(vs.end(), v[i], v[i] + 3);
     ms.push_back(rmass[i]);
@@ -1362,8 +1157,7 @@ void FixHybridMPM::apply_updates(const coupler::GrainView &view, const std::vect
     }
     if (any) supported.push_back(index[g]);
   }
-  ledger.agreement += kicked;
-  ledger.energy += kicked;
+  ledger->add_agreement(kicked);
 }
 
 /* ----------------------------------------------------------------------
@@ -1454,62 +1248,20 @@ double FixHybridMPM::compute_vector(int n)
 
 void FixHybridMPM::grain_totals(double *all) const
 {
-  // mass, linear momentum, angular momentum about the origin (orbital and spin) of the group's
-  // grains (not of frozen floors or driven bodies outside it, whose momentum others impose)
-  double local[7] = {0, 0, 0, 0, 0, 0, 0};
-  double **x = atom->x, **v = atom->v, **omega = atom->omega;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double m = atom->rmass[i];
-    local[0] += m;
-    for (int a = 0; a < 3; a++) local[1 + a] += m * v[i][a];
-    const double I = opt->inertia * m * atom->radius[i] * atom->radius[i];
-    local[4] += m * (x[i][1] * v[i][2] - x[i][2] * v[i][1]) + I * omega[i][0];
-    local[5] += m * (x[i][2] * v[i][0] - x[i][0] * v[i][2]) + I * omega[i][1];
-    local[6] += m * (x[i][0] * v[i][1] - x[i][1] * v[i][0]) + I * omega[i][2];
-  }
+  // mass, linear momentum, angular momentum about the origin of the group's grains
+  double local[7];
+  coupler::grain_totals(grains(), opt->inertia, local);
   MPI_Allreduce(local, all, 7, MPI_DOUBLE, MPI_SUM, world);
 }
 
 void FixHybridMPM::fill_thermo_vector()
 {
-  double all[7];
-  grain_totals(all);
-  const coupler::StepAck &a = *last_ack;
-  double *out = vector_cache;
-  out[kVecExchanges] = static_cast<double>(exchanges + restart_exchanges);
-  out[kVecCoupledGrains] = static_cast<double>(coupled_grains);
-  out[kVecPoints] = static_cast<double>(a.points);
-  out[kVecSharedNodes] = static_cast<double>(a.shared_nodes);
-  out[kVecMismatch] = a.mismatch;
-  out[kVecSubsteps] = a.substeps;
-  out[kVecMpmDt] = a.mpm_dt;
-  out[kVecMass] = all[0] + a.mass;
-  for (int d = 0; d < 3; d++) {
-    out[kVecPx + d] = all[1 + d] + a.momentum[d];
-    out[kVecLx + d] = all[4 + d] + a.angular[d];
-  }
-  out[kVecContinuumKE] = a.kinetic_energy;
-  out[kVecContinuumCells] = static_cast<double>(a.zone_cells[coupler::kContinuum]);
-  out[kVecHybridCells] = static_cast<double>(a.zone_cells[coupler::kHybrid]);
-  out[kVecDiscreteCells] = static_cast<double>(a.zone_cells[coupler::kDiscrete]);
-
-  const double local[6] = {ledger.start, ledger.energy, ledger.dem, ledger.agreement, ledger.support, ledger.rezone};
-  double sum[6];
-  MPI_Allreduce(local, sum, 6, MPI_DOUBLE, MPI_SUM, world);
-  out[kVecEnergyGrains] = sum[1];
-  out[kVecEnergyContinuum] = a.energy;
-  out[kVecEnergy] = sum[1] + a.energy;
-  out[kVecEnergyDem] = sum[2];
-  out[kVecEnergyContinuumSteps] = a.energy_physics;
-  out[kVecEnergyAgreementGrains] = sum[3];
-  out[kVecEnergyAgreementContinuum] = a.energy_agreement;
-  out[kVecEnergySupport] = sum[4];
-  out[kVecEnergyRezoneGrains] = sum[5];
-  out[kVecEnergyRezoneContinuum] = a.energy_rezone;
-  double changes = 0.0;
-  for (int k = kVecEnergyDem; k <= kVecEnergyRezoneContinuum; k++) changes += out[k];
-  out[kVecEnergyResidual] = out[kVecEnergy] - (sum[0] + continuum_start) - changes;
+  double totals[7], local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
+  grain_totals(totals);
+  ledger->sums(local);
+  MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
+  coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start,
+                         vector_cache);
   vector_step = update->ntimestep;
 }
 
@@ -1521,30 +1273,12 @@ void FixHybridMPM::fill_thermo_vector()
 
 double FixHybridMPM::grain_energy() const
 {
-  const double *g = opt->continuum.gravity;
-  double **x = atom->x, **v = atom->v, **omega = atom->omega;
-  double energy = 0.0;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double m = atom->rmass[i], I = opt->inertia * m * atom->radius[i] * atom->radius[i];
-    double kinetic = 0.0, spin = 0.0, height = 0.0;
-    for (int a = 0; a < 3; a++) {
-      kinetic += v[i][a] * v[i][a];
-      spin += omega[i][a] * omega[i][a];
-      height += g[a] * x[i][a];
-    }
-    energy += 0.5 * m * kinetic + 0.5 * I * spin - m * height;
-  }
-  return energy;
+  return coupler::grain_energy(grains(), opt->inertia, opt->continuum.gravity);
 }
 
 void FixHybridMPM::close_dem_bracket()
 {
-  const double now = grain_energy();
-  ledger.dem += now - ledger.energy - ledger.support_open;
-  ledger.support += ledger.support_open;
-  ledger.support_open = 0.0;
-  ledger.energy = now;
+  ledger->close_dem_bracket(grain_energy());
 }
 
 /* ---------------------------------------------------------------------- */

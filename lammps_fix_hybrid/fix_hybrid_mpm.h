@@ -40,6 +40,9 @@ template <int D> struct RezoneCell;
 template <int D> struct BodySums;
 template <int D> struct GrainSums;
 struct CellGrains;
+struct GrainRules;
+struct DemGrains;
+struct EnergyLedger;
 struct OracleSettings;
 struct FixOptions;
 struct RezoneReport;
@@ -100,6 +103,8 @@ class FixHybridMPM : public Fix {
   // a grain's mass at weight 1 from its radius and the grains' density (rezones give every grain
   // of a moving cell its weight times this)
   double solid_mass(double radius) const;
+  coupler::GrainRules grain_rules() const;    // solid density and inertia of the grains
+  coupler::DemGrains grains() const;          // this rank's atoms as the coupler sees them (coupler/dem_grains.hpp)
   double **support;                       // per-atom acceleration from the continuum until the next exchange
   std::vector<int> supported;             // local atoms with a support acceleration (valid until reneighboring)
   std::unique_ptr<coupler::GrainTransfer<2>> transfer2;    // grain <-> node transfers (2D runs)
@@ -137,20 +142,10 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::StepAck> last_ack;
   bigint coupled_grains;
   bigint vector_step;                     // step of the cached thermo vector
-  double vector_cache[29];                // f_ID[1..29], docs/fix_hybrid_mpm.md
+  double vector_cache[29];               // f_ID[1..29], docs/fix_hybrid_mpm.md (coupler::ThermoEntry)
 
-  // The grains' side of the energy ledger (docs/fix_hybrid_mpm.md, "Energy ledger"): brackets
-  // that follow each other without a gap, each closed at an exchange or a rezone. Sums over
-  // this rank's grains; only their sum over the ranks means anything (atoms change ranks).
-  struct EnergyLedger {
-    double start = 0;        // the grains' energy when the ledger started
-    double energy = 0;       // their energy when the last bracket closed
-    double dem = 0;          // LAMMPS's own steps: contacts, walls, grains leaving
-    double agreement = 0;    // the velocity agreements' updates of the grains
-    double support = 0;      // the support force's kicks
-    double support_open = 0; // those kicks since the last bracket closed
-    double rezone = 0;       // grains deleted, made and corrected by rezones
-  } ledger;
+  // the grains' side of the energy ledger (coupler/dem_ledger.hpp), this rank's grains
+  std::unique_ptr<coupler::EnergyLedger> ledger;
   bool ledger_started;
   double continuum_start;                 // the continuum's energy when the ledger started
   double grain_energy() const;            // kinetic (with rotation) + potential, this rank's grains
@@ -158,10 +153,8 @@ class FixHybridMPM : public Fix {
 
   void connect();
   template <int D> void rezone(int source);
-  template <int D> std::vector<coupler::CellGrains> cell_grains();
   template <int D> bigint make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
                                       std::map<std::size_t, coupler::GrainSums<D>> &sums);
-  template <int D> void sum_over_ranks(std::vector<coupler::BodySums<D>> &sums);
   template <int D> const coupler::PackingTemplate<D> &packing_template();
   void schedule_rezone(int source);
   double dem_steps_per_contact(std::string &why);
