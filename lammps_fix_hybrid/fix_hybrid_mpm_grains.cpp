@@ -154,14 +154,11 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
   Pair *pair = force->pair_match("^gran/hooke", 0);
   if (!pair) {
     if (force->pair && !timestep_checked && comm->me == 0)
-      error->warning(FLERR, fmt::format("Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and "
-                                        "gran/hooke/history only; check it yourself for pair style {} "
-                                        "(at least {:g} steps per contact)", force->pair_style,
-                                        coupler::kSafeStepsPerContact));
+      error->warning(FLERR, coupler::unchecked_pair_style(force->pair_style));
     timestep_checked = true;
     return BIG;
   }
-  const bool splits = !opt->continuum_regions.empty() || opt->adapt_every > 0;
+  const bool splits = opt->splits();
   double local = BIG, lightest = BIG;
   for (int i = 0; i < atom->nlocal; i++) {
     local = std::min(local, atom->rmass[i]);
@@ -174,25 +171,12 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
   coupler::HookeanContact contact = HookeanConstants::of(pair);
   contact.m_eff = 0.5 * lightest;
   contact.inertia = opt->inertia;
-  const double tc = coupler::contact_time(contact), steps = tc / update->dt;
-  const std::string what =
-      fmt::format("the stiffest contact (pair style {}: kn = {:.6g} N/m, kt = {:.6g} N/m, gamma_n = {:.6g} 1/s; "
-                  "lightest grains {:.6g} kg{}) lasts tc = {:.6g} s",
-                  force->pair_style, contact.kn, contact.kt, contact.gamman, lightest,
-                  splits ? ", at their share in hybrid cells" : "", tc);
-  if (!timestep_checked && comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: DEM time step {:.6g} s: {}, {:.3g} steps per contact\n",
-                                    update->dt, what, steps));
+  const coupler::DemStepCheck check =
+      coupler::check_dem_step(force->pair_style, contact, lightest, splits, update->dt);
+  if (!timestep_checked && comm->me == 0) utils::logmesg(lmp, check.log_line(update->dt) + "\n");
   timestep_checked = true;
-  why = fmt::format("{}, and {:.3g} steps per contact ({}) {}. Use timestep {:.6g} (tc/{:g}) or less", what, steps,
-                    steps < coupler::kUnstableStepsPerContact ? "fewer than pi/2"
-                                                              : fmt::format("fewer than {:g}", opt->warn_steps_per_contact),
-                    steps < coupler::kUnstableStepsPerContact
-                        ? "make velocity Verlet unstable"
-                        : "resolve it poorly (a collision's energy balance drifts; keyword steps_per_contact sets "
-                          "this threshold)",
-                    tc / coupler::kSafeStepsPerContact, coupler::kSafeStepsPerContact);
-  return steps;
+  why = check.why(opt->warn_steps_per_contact);
+  return check.steps;
 }
 
 /* ---------------------------------------------------------------------- */
