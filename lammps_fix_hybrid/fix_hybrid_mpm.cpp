@@ -61,7 +61,8 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     new_grain_mask(1), polydispersity(0.0), interval_rezones(new coupler::RezoneTally),
     run_rezones(new coupler::RezoneTally), timestep_checked(false), fewest_steps_warned(BIG), restored(false),
     state_loaded(false), clock_time(0.0), clock_step(-1), clock_dt(0.0), stress_id(nullptr),
-    last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger(new coupler::EnergyLedger), ledger_started(false), continuum_start(0.0)
+    last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger(new coupler::EnergyLedger),
+    ledger_started(false), continuum_start(0.0)
 {
   // fix ID group hybrid/mpm keyword value ...: the options (coupler/fix_options.hpp)
   try {

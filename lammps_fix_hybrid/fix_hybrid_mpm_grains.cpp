@@ -258,7 +258,8 @@ void FixHybridMPM::apply_material()
                                     "{:.3g}, friction angle {:.4g} deg, mu_s {:.4g}, mu_2 {:.4g}, I0 {:.4g}, "
                                     "critical packing {:.4g}\n",
                                     m.name, m.path, opt->continuum.youngs_modulus, opt->continuum.poisson_ratio,
-                                    opt->continuum.friction_angle_deg, opt->continuum.mu_s, opt->continuum.mu_2, opt->continuum.I0,
+                                    opt->continuum.friction_angle_deg, opt->continuum.mu_s, opt->continuum.mu_2,
+                                    opt->continuum.I0,
                                     opt->continuum.critical_packing));
 }
 
