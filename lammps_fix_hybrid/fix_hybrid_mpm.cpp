@@ -15,125 +15,36 @@
    docs/fix_hybrid_mpm.md.
 ------------------------------------------------------------------------- */
 
-#include "fix_hybrid_mpm.h"
+#include "fix_hybrid_mpm_impl.h"
 
 #include "atom.h"
-#include "atom_vec.h"
 #include "comm.h"
 #include "compute.h"
-#include "domain.h"
 #include "error.h"
-#include "force.h"
-#include "group.h"
-#include "math_const.h"
 #include "memory.h"
 #include "modify.h"
 #include "output.h"
-#include "pair.h"
-#include "region.h"
 #include "update.h"
 #include "utils.h"
 #include "version.h"
 
-#include "GRANULAR/pair_gran_hooke_history.h"
-
-#include "coupler/conversion.hpp"
-#include "coupler/dem_timestep.hpp"
-#include "coupler/enrichment.hpp"
-#include "coupler/material_file.hpp"
-#include "coupler/oracle.hpp"
-#include "coupler/protocol.hpp"
-#include "coupler/transfer.hpp"
+#include "coupler/dem_ledger.hpp"
+#include "coupler/dem_session.hpp"
+#include "coupler/fix_options.hpp"
+#include "coupler/rezone_log.hpp"
 #include "coupler/tuning.hpp"
 #include "coupler/version.hpp"
 #include "coupler/zones.hpp"
 
-#include <memory>
-
-#include <algorithm>
-#include <cmath>
 #include <cstring>
-#include <map>
+#include <memory>
 #include <string>
 
 using namespace LAMMPS_NS;
 using namespace FixConst;
-using MathConst::MY_PI;
-
-static constexpr double BIG = 1.0e20;
-// per-atom values that travel with a grain (pack_exchange): weight, support (3), stored stress (6)
-static constexpr int kPerAtomValues = 1 + 3 + 6;
+using namespace LAMMPS_NS::hybrid_mpm;
 using coupler::kSmallestCellInGrains;    // tuned constants: coupler/tuning.hpp
-using coupler::kSmallestShrink;
 
-namespace {
-
-// The contact constants of LAMMPS's Hookean granular pair styles are protected members; a type
-// derived from the pair may name them (it is never instantiated, so nothing of the pair's code
-// is linked: the plugin loads into a LAMMPS whatever its packages).
-struct HookeanConstants : PairGranHookeHistory {
-  static coupler::HookeanContact of(const Pair *pair)
-  {
-    const auto *p = static_cast<const PairGranHookeHistory *>(pair);
-    coupler::HookeanContact c;
-    c.kn = p->*(&HookeanConstants::kn);
-    c.kt = p->*(&HookeanConstants::kt);
-    c.gamman = p->*(&HookeanConstants::gamman);
-    return c;
-  }
-  static double tangential_damping(const Pair *pair)
-  {
-    return static_cast<const PairGranHookeHistory *>(pair)->*(&HookeanConstants::gammat);
-  }
-  static double friction(const Pair *pair)
-  {
-    return static_cast<const PairGranHookeHistory *>(pair)->*(&HookeanConstants::xmu);
-  }
-};
-
-const char *const kKeywords =
-    "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
-    "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
-    "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
-    "seed, steps_per_contact, material, relax";
-
-// Container faces in the order of coupler::face_bit (axis, then lo/hi): the values of `touch`
-const char *const kFaceNames[6] = {"xlo", "xhi", "ylo", "yhi", "zlo", "zhi"};
-
-// Thermo vector entries (docs/fix_hybrid_mpm.md)
-enum {
-  kVecExchanges, kVecCoupledGrains, kVecPoints, kVecSharedNodes, kVecMismatch, kVecSubsteps, kVecMpmDt,
-  kVecMass, kVecPx, kVecPy, kVecPz, kVecLx, kVecLy, kVecLz, kVecContinuumKE, kVecContinuumCells, kVecHybridCells,
-  kVecDiscreteCells,
-  // the energy ledger (J, J/m in 2D), as of the last exchange or rezone
-  kVecEnergy, kVecEnergyGrains, kVecEnergyContinuum, kVecEnergyDem, kVecEnergyContinuumSteps, kVecEnergyAgreementGrains,
-  kVecEnergyAgreementContinuum, kVecEnergySupport, kVecEnergyRezoneGrains, kVecEnergyRezoneContinuum,
-  kVecEnergyResidual, kVecSize
-};
-
-template <int D>
-using Vec = Eigen::Matrix<double, D, 1>;
-
-template <int D>
-coupler::GridGeometry<D> box_grid(const Domain *domain, double cell)
-{
-  return coupler::padded_grid<D>(Eigen::Map<const Vec<D>>(domain->boxlo), Eigen::Map<const Vec<D>>(domain->boxhi),
-                                 cell);
-}
-
-/// The slot `slots` gives the grid cell holding position x; -1 off the grid or for a cell it
-/// does not list.
-template <int D>
-std::int64_t slot_of_cell_at(const coupler::GridGeometry<D> &grid, const double *x,
-                             const std::map<std::uint64_t, std::size_t> &slots)
-{
-  const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(x));
-  if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return -1;
-  const auto it = slots.find(coupler::cell_index<D>(grid, c));
-  return it == slots.end() ? -1 : static_cast<std::int64_t>(it->second);
-}
-
-}    // namespace
 
 /* ---------------------------------------------------------------------- */
 
@@ -145,205 +56,29 @@ Fix *FixHybridMPM::creator(LAMMPS *lmp, int narg, char **arg)
 /* ---------------------------------------------------------------------- */
 
 FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
-    Fix(lmp, narg, arg), cell(-1.0), reply_timeout(30.0), idle_timeout(600.0),
-    model(coupler::kModelDruckerPrager), every(1), hybrid_width(2), adapt_every(0), grain_type(0),
-    template_seed(12345), inertia(-1.0),
-    settings(new coupler::ContinuumSettings), oracle(new coupler::OracleSettings), diameter_given(false), density_given(false), exchanges(0),
-    restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr), support(nullptr),
-    converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle), new_grain_mask(1),
-    polydispersity(0.0), timestep_checked(false), fewest_steps_warned(BIG),
-    warn_steps_per_contact(coupler::kWarnStepsPerContact), relax_time(-1.0), restored(false), state_loaded(false),
-    clock_time(0.0), clock_step(-1), clock_dt(0.0),
-    stress_id(nullptr), last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1),
+    Fix(lmp, narg, arg), exchanges(0), restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr),
+    support(nullptr), converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle),
+    new_grain_mask(1), polydispersity(0.0), interval_rezones(new coupler::RezoneTally),
+    run_rezones(new coupler::RezoneTally), timestep_checked(false), fewest_steps_warned(BIG), restored(false),
+    state_loaded(false), clock_time(0.0), clock_step(-1), clock_dt(0.0), stress_id(nullptr),
+    last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger(new coupler::EnergyLedger),
     ledger_started(false), continuum_start(0.0)
 {
-  // fix ID group hybrid/mpm keyword value ...
-
-  auto number = [&](const std::string &key, const std::string &val) {
-    if (!utils::is_double(val)) illegal(fmt::format("keyword '{}' needs a number, not '{}'", key, val));
-    return utils::numeric(FLERR, val.c_str(), false, lmp);
-  };
-  auto positive = [&](const std::string &key, const std::string &val, const char *what) {
-    const double v = number(key, val);
-    if (!(v > 0.0)) illegal(fmt::format("keyword '{}' must be > 0 ({}), not {}", key, what, val));
-    return v;
-  };
-  auto integer = [&](const std::string &key, const std::string &val) {
-    if (!utils::is_integer(val) || utils::inumeric(FLERR, val.c_str(), false, lmp) <= 0)
-      illegal(fmt::format("keyword '{}' needs a positive integer, not '{}'", key, val));
-    return utils::inumeric(FLERR, val.c_str(), false, lmp);
-  };
-  coupler::ContinuumSettings &c = *settings;
-  bool pic_given = false;
-  std::vector<std::string> constants_given;    // material constants on the fix line (not with 'material')
-  int iarg = 3;
-  while (iarg < narg) {
-    const std::string key = arg[iarg];
-    if (iarg + 2 > narg) illegal(fmt::format("keyword '{}' needs a value", key));
-    const std::string val = arg[iarg + 1];
-    int used = 2;
-    if (key == "youngs" || key == "poisson" || key == "friction" || key == "mu_s" || key == "mu_2" || key == "I0" ||
-        key == "critical_packing")
-      constants_given.push_back(key);
-    if (key == "cell") cell = positive(key, val, "the MPM grid cell size");
-    else if (key == "material") {
-      try {
-        material = std::make_unique<coupler::CalibratedMaterial>(
-            coupler::read_material_file(coupler::find_material_file(val)));
-      } catch (const std::exception &e) {
-        illegal(fmt::format("keyword 'material': {}", e.what()));
-      }
-      if (material->dimension != domain->dimension)
-        illegal(fmt::format("keyword 'material': {} was calibrated in {}D, this run is {}D", val, material->dimension,
-                            domain->dimension));
-    }
-    else if (key == "continuum") region_ids.push_back(val);
-    else if (key == "discrete") discrete_region_ids.push_back(val);
-    else if (key == "hybrid_width") hybrid_width = integer(key, val);
-    else if (key == "weight") {
-      c.grain_weight = number(key, val);
-      if (!(c.grain_weight > 0.0 && c.grain_weight < 1.0))
-        illegal(fmt::format("keyword 'weight' (the share of a hybrid cell's mass its grains keep) must be "
-                            "between 0 and 1, not {}", val));
-    } else if (key == "model") {
-      if (val == "drucker_prager") model = coupler::kModelDruckerPrager;
-      else if (val == "mu_i") model = coupler::kModelMuI;
-      else illegal(fmt::format("keyword 'model' must be drucker_prager or mu_i, not '{}'", val));
-    } else if (key == "youngs") c.youngs_modulus = positive(key, val, "Pa");
-    else if (key == "poisson") {
-      c.poisson_ratio = number(key, val);
-      if (!(c.poisson_ratio > -1.0 && c.poisson_ratio < 0.5))
-        illegal(fmt::format("keyword 'poisson' must be in (-1, 0.5), not {}", val));
-    } else if (key == "friction") {
-      c.friction_angle_deg = number(key, val);
-      if (!(c.friction_angle_deg >= 0.0 && c.friction_angle_deg < 90.0))
-        illegal(fmt::format("keyword 'friction' (friction angle, degrees) must be in [0, 90), not {}", val));
-    } else if (key == "mu_s") c.mu_s = positive(key, val, "static friction of mu(I)");
-    else if (key == "mu_2") c.mu_2 = positive(key, val, "limit friction of mu(I)");
-    else if (key == "I0") c.I0 = positive(key, val, "inertial number scale of mu(I)");
-    else if (key == "diameter") c.grain_diameter = positive(key, val, "grain diameter, m"), diameter_given = true;
-    else if (key == "grain_density") c.grain_density = positive(key, val, "kg/m^3"), density_given = true;
-    else if (key == "critical_packing") {
-      c.critical_packing = number(key, val);
-      if (!(c.critical_packing > 0.0 && c.critical_packing < 1.0))
-        illegal(fmt::format("keyword 'critical_packing' must be in (0, 1), not {}", val));
-    } else if (key == "wall") {
-      if (val == "sticky") c.wall_contact = coupler::kWallSticky;
-      else if (val == "slip") c.wall_contact = coupler::kWallSlip;
-      else if (val == "friction") {
-        if (iarg + 3 > narg) illegal("keyword 'wall friction' needs the friction coefficient");
-        c.wall_contact = coupler::kWallFriction;
-        c.wall_friction = number("wall friction", arg[iarg + 2]);
-        if (c.wall_friction < 0.0) illegal("keyword 'wall friction' needs a coefficient >= 0");
-        used = 3;
-      } else illegal(fmt::format("keyword 'wall' must be sticky, slip or friction MU, not '{}'", val));
-    } else if (key == "container") {
-      // xlo xhi ylo yhi (zlo zhi): walls of the continuum; INF = the box face
-      const int nval = 2 * domain->dimension;
-      if (iarg + 1 + nval > narg)
-        illegal(fmt::format("keyword 'container' needs {} values (xlo xhi ylo yhi{}; INF = the box face)", nval,
-                            domain->dimension == 3 ? " zlo zhi" : ""));
-      for (int k = 0; k < nval; k++) {
-        const std::string v = arg[iarg + 1 + k];
-        container_given[k] = v != "INF" && v != "EDGE";
-        if (container_given[k]) container_value[k] = number("container", v);
-      }
-      used = 1 + nval;
-    } else if (key == "touch") {
-      // a container face the continuum may reach (its wall law stands for the DEM wall)
-      const int nfaces = 2 * domain->dimension;
-      const int f = static_cast<int>(std::find(kFaceNames, kFaceNames + 6, val) - kFaceNames);
-      if (val == "all")
-        for (int k = 0; k < nfaces; k++) c.touched_faces |= coupler::face_bit(k / 2, k % 2);
-      else if (f < nfaces) c.touched_faces |= coupler::face_bit(f / 2, f % 2);
-      else if (f < 6)
-        illegal(fmt::format("keyword 'touch' face '{}' needs a 3D box (a 2D box has no z faces)", val));
-      else
-        illegal(fmt::format("keyword 'touch' needs a container face ({}, {}, {}, {}{} or all), not '{}'",
-                            kFaceNames[0], kFaceNames[1], kFaceNames[2], kFaceNames[3],
-                            nfaces == 6 ? ", zlo, zhi" : "", val));
-    } else if (key == "cfl") {
-      c.cfl = number(key, val);
-      if (!(c.cfl > 0.0 && c.cfl <= 1.0)) illegal(fmt::format("keyword 'cfl' must be in (0, 1], not {}", val));
-    } else if (key == "pic") {
-      pic_given = true;
-      c.pic = number(key, val);
-      if (!(c.pic >= 0.0 && c.pic <= 1.0)) illegal(fmt::format("keyword 'pic' must be in [0, 1], not {}", val));
-    } else if (key == "support") {
-      c.support_gain = number(key, val);
-      if (!(c.support_gain >= 0.0 && c.support_gain <= 1.0))
-        illegal(fmt::format("keyword 'support' (gain of the support force between exchanges) must be in [0, 1], "
-                            "not {}", val));
-    } else if (key == "points_per_cell") {
-      c.points_per_axis = integer(key, val);
-      if (c.points_per_axis > 4) illegal("keyword 'points_per_cell' (points per cell and axis) must be 1 to 4");
-    } else if (key == "inertia") inertia = positive(key, val, "I = inertia m r^2");
-    else if (key == "output") {
-      if (iarg + 3 > narg) illegal("keyword 'output' needs a file name and an interval in exchanges");
-      output_path = val;
-      c.output_every = integer("output", arg[iarg + 2]);
-      if (output_path.size() >= sizeof(c.output_path))
-        illegal(fmt::format("keyword 'output': the file name is longer than {} characters", sizeof(c.output_path) - 1));
-      coupler::set_text(c.output_path, output_path);
-      used = 3;
-    } else if (key == "adaptive") adapt_every = integer(key, val);
-    else if (set_oracle_keyword(key, val)) {
-    } else if (key == "grain_type") grain_type = integer(key, val);
-    else if (key == "seed") template_seed = integer(key, val);
-    else if (key == "relax") {
-      relax_time = number(key, val);
-      if (!(relax_time >= 0.0))
-        illegal(fmt::format("keyword 'relax' (relaxation time of the velocity agreement, s; 0 = close the gap at "
-                            "every exchange) must be >= 0, not {}", val));
-    } else if (key == "steps_per_contact") {
-      warn_steps_per_contact = number(key, val);
-      if (!(warn_steps_per_contact > coupler::kUnstableStepsPerContact))
-        illegal(fmt::format("keyword 'steps_per_contact' (warn below this many DEM steps per contact) must exceed "
-                            "pi/2, where velocity Verlet goes unstable, not {}", val));
-    }
-    else if (key == "mpm_state") mpm_state_path = val;
-    else if (key == "every") every = integer(key, val);
-    else if (key == "timeout") reply_timeout = positive(key, val, "seconds");
-    else if (key == "idle") {
-      idle_timeout = number(key, val);
-      if (idle_timeout < 0.0)
-        illegal(fmt::format("keyword 'idle' must be >= 0 seconds (0 = wait forever), not {}", val));
-    } else
-      illegal(fmt::format("unknown keyword '{}' (known keywords: {})", key, kKeywords));
-    iarg += used;
+  // fix ID group hybrid/mpm keyword value ...: the options (coupler/fix_options.hpp)
+  try {
+    opt = std::make_unique<coupler::FixOptions>(coupler::parse_fix_options(
+        std::vector<std::string>(arg + 3, arg + narg), domain->dimension, atom->ntypes,
+        [&](const std::string &rid) { return domain->find_region(rid) >= 0; }));
+  } catch (const coupler::OptionError &e) {
+    illegal(e.what());
   }
-  if (cell <= 0.0) illegal("keyword 'cell' (the MPM grid cell size) is required");
-  if (material && !constants_given.empty())
-    illegal(fmt::format("keyword '{}' conflicts with 'material', which sets the continuum's constants from the "
-                        "calibration; leave one out", constants_given.front()));
-  for (const auto &[kind, ids] : named_regions())
-    for (const auto &rid : *ids)
-      if (domain->find_region(rid) < 0)
-        illegal(fmt::format("{} region '{}' does not exist (define it with the region command first)", kind, rid));
-  if (!discrete_region_ids.empty() && adapt_every <= 0)
-    illegal("keyword 'discrete' needs adaptive zones (keyword 'adaptive'): with fixed zones, leave the region "
-            "out of the continuum regions instead");
-  if (c.touched_faces != 0 && adapt_every <= 0)
-    illegal("keyword 'touch' needs adaptive zones (keyword 'adaptive'): with fixed zones, the continuum regions "
-            "decide where the continuum is");
-  if (inertia < 0.0) inertia = domain->dimension == 2 ? 0.5 : 0.4;
-  if (adapt_every > 0 && adapt_every % every != 0)
-    illegal(fmt::format("keyword 'adaptive' ({} steps) must be a multiple of 'every' ({}): zones change right "
-                        "after an exchange", adapt_every, every));
-  check_oracle();
-  // With moving zones the hybrid band lies inside the flow: taking the agreed field there
-  // (pic 1) erases the grains' fluctuations at every exchange and damps the flow (a column
-  // collapse ran out 35 % short); the impulse-only rule of docs/design.md section 5 keeps them.
-  if (adapt_every > 0 && !pic_given) c.pic = 0.0;
-  if (grain_type > atom->ntypes)
-    illegal(fmt::format("keyword 'grain_type' {} is not an atom type (1 to {})", grain_type, atom->ntypes));
 
   nevery = 1;               // the support force acts every step; exchanges every `every` steps
   scalar_flag = 1;           // f_ID = number of completed exchanges with the MPM process
   global_freq = 1;           // a count, valid on any step
   extscalar = 0;
   vector_flag = 1;           // f_ID[i]: hybrid counts, residual and totals (docs)
-  size_vector = kVecSize;
+  size_vector = coupler::kVecSize;
   extvector = 0;
   restart_global = 1;
   restart_peratom = 1;
@@ -361,7 +96,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
   check_box();
 
   // per-atom stress*volume for the Love-Weber stress of new material points
-  if (!region_ids.empty() || adapt_every > 0) {
+  if (!opt->continuum_regions.empty() || opt->adapt_every > 0) {
     stress_id = utils::strdup(std::string(id) + "_hybrid_stress");
     modify->add_compute(fmt::format("{} all stress/atom NULL virial", stress_id));
   }
@@ -396,67 +131,8 @@ FixHybridMPM::~FixHybridMPM()
     if (comm->me == 0) error->warning(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
   }
   coupler::set_peer(nullptr);
+  session.reset();
   link.reset();
-}
-
-/* ----------------------------------------------------------------------
-   the MPM grid, the zone cells and the continuum's walls are axis-aligned
-   boxes over [boxlo, boxhi]: a tilted box has no such grid
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::check_box() const
-{
-  if (domain->triclinic)
-    error->all(FLERR, "Fix hybrid/mpm: the simulation box is triclinic, but the MPM grid needs an orthogonal "
-                      "box (its cells are axis-aligned); use an orthogonal box (change_box all ortho)");
-}
-
-/* ----------------------------------------------------------------------
-   gravity: sent to the MPM process once, at the handshake, and part of the
-   energy ledger's potential energy from then on, so it must not change
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::dem_gravity(double *g) const
-{
-  for (int d = 0; d < 3; d++) g[d] = 0.0;
-  for (int i = 0; i < modify->nfix; i++)
-    if (utils::strmatch(modify->fix[i]->style, "^gravity")) {
-      int dim = 0;
-      const auto *gi = static_cast<const double *>(modify->fix[i]->extract("gvec", dim));
-      if (gi)
-        for (int d = 0; d < 3; d++) g[d] += gi[d];
-    }
-}
-
-void FixHybridMPM::check_gravity() const
-{
-  double now[3];
-  dem_gravity(now);
-  const double *then = settings->gravity;
-  const double scale = std::max(std::sqrt(then[0] * then[0] + then[1] * then[1] + then[2] * then[2]),
-                                std::sqrt(now[0] * now[0] + now[1] * now[1] + now[2] * now[2]));
-  bool same = true;
-  for (int d = 0; d < 3; d++) same = same && std::fabs(now[d] - then[d]) <= 1e-12 * scale;    // round-off only
-  if (!same)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: gravity changed since the coupled run started: ({}, {}, {}) m/s^2 "
-                                  "then, ({}, {}, {}) now. The MPM process keeps the gravity of the handshake (and "
-                                  "the energy ledger its potential energy): keep the fix gravity commands unchanged "
-                                  "while fix hybrid/mpm is defined",
-                                  then[0], then[1], then[2], now[0], now[1], now[2]));
-}
-
-/* ----------------------------------------------------------------------
-   the compute stress/atom the fix made; a user may have deleted it
-------------------------------------------------------------------------- */
-
-Compute *FixHybridMPM::stress_compute() const
-{
-  const int icompute = stress_id ? modify->find_compute(stress_id) : -1;
-  if (icompute < 0)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: its compute {} (stress/atom, for the stress of new material "
-                                  "points) no longer exists: do not uncompute it while the fix is defined",
-                                  stress_id ? stress_id : "ID_hybrid_stress"));
-  return modify->compute[icompute];
 }
 
 /* ---------------------------------------------------------------------- */
@@ -481,7 +157,7 @@ void FixHybridMPM::init()
     error->all(FLERR, "Fix hybrid/mpm requires units si (the MPM process works in SI units)");
   if (atom->molecular != Atom::ATOMIC)
     error->all(FLERR, "Fix hybrid/mpm does not support molecular systems (grains only)");
-  if (!region_ids.empty() || adapt_every > 0) {
+  if (!opt->continuum_regions.empty() || opt->adapt_every > 0) {
     for (int d = 0; d < domain->dimension; d++)
       if (domain->boundary[d][0] != 1 || domain->boundary[d][1] != 1)
         error->all(FLERR, fmt::format("Fix hybrid/mpm with continuum regions or adaptive zones needs fixed boundaries ('f') in "
@@ -507,208 +183,31 @@ void FixHybridMPM::init()
   check_dem_timestep("at the start of the run");
 }
 
-/* ----------------------------------------------------------------------
-   grains the coupling made or rescaled may be lighter than any before, and
-   their contacts faster: the user is told (again whenever the figure drops
-   by another 10 %). Neither stopping nor shortening the step helps yet: both
-   end runs the rezones' mass drift would otherwise finish (docs, "DEM time step")
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::check_dem_timestep(const std::string &when)
-{
-  std::string why;
-  const double steps = dem_steps_per_contact(why);
-  if (steps >= warn_steps_per_contact || steps >= 0.9 * fewest_steps_warned) return;
-  fewest_steps_warned = steps;
-  if (comm->me == 0)
-    error->warning(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s resolves the contacts poorly {}: {}",
-                                      update->dt, when, why));
-}
-
-/* ----------------------------------------------------------------------
-   the DEM side's stability (docs/design.md section 3): steps per contact of the
-   stiffest pair, the two lightest grains (infinite for pair styles it cannot
-   check); `why` explains it and names the safe step. Grains in hybrid cells
-   carry only their share `weight` of their mass and vibrate faster, so while
-   the coupling may split grains the lightest grain counts at that share.
-   Logs the figure at the first check.
-------------------------------------------------------------------------- */
-
-double FixHybridMPM::dem_steps_per_contact(std::string &why)
-{
-  Pair *pair = force->pair_match("^gran/hooke", 0);
-  if (!pair) {
-    if (force->pair && !timestep_checked && comm->me == 0)
-      error->warning(FLERR, fmt::format("Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and "
-                                        "gran/hooke/history only; check it yourself for pair style {} "
-                                        "(at least {:g} steps per contact)", force->pair_style,
-                                        coupler::kSafeStepsPerContact));
-    timestep_checked = true;
-    return BIG;
-  }
-  const bool splits = !region_ids.empty() || adapt_every > 0;
-  double local = BIG, lightest = BIG;
-  for (int i = 0; i < atom->nlocal; i++) {
-    local = std::min(local, atom->rmass[i]);
-    if (splits && (atom->mask[i] & groupbit))
-      local = std::min(local, atom->rmass[i] / weight[i] * settings->grain_weight);
-  }
-  MPI_Allreduce(&local, &lightest, 1, MPI_DOUBLE, MPI_MIN, world);
-  if (lightest >= BIG) return BIG;
-
-  coupler::HookeanContact contact = HookeanConstants::of(pair);
-  contact.m_eff = 0.5 * lightest;
-  contact.inertia = inertia;
-  const double tc = coupler::contact_time(contact), steps = tc / update->dt;
-  const std::string what =
-      fmt::format("the stiffest contact (pair style {}: kn = {:.6g} N/m, kt = {:.6g} N/m, gamma_n = {:.6g} 1/s; "
-                  "lightest grains {:.6g} kg{}) lasts tc = {:.6g} s",
-                  force->pair_style, contact.kn, contact.kt, contact.gamman, lightest,
-                  splits ? ", at their share in hybrid cells" : "", tc);
-  if (!timestep_checked && comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: DEM time step {:.6g} s: {}, {:.3g} steps per contact\n",
-                                    update->dt, what, steps));
-  timestep_checked = true;
-  why = fmt::format("{}, and {:.3g} steps per contact ({}) {}. Use timestep {:.6g} (tc/{:g}) or less", what, steps,
-                    steps < coupler::kUnstableStepsPerContact ? "fewer than pi/2"
-                                                              : fmt::format("fewer than {:g}", warn_steps_per_contact),
-                    steps < coupler::kUnstableStepsPerContact
-                        ? "make velocity Verlet unstable"
-                        : "resolve it poorly (a collision's energy balance drifts; keyword steps_per_contact sets "
-                          "this threshold)",
-                    tc / coupler::kSafeStepsPerContact, coupler::kSafeStepsPerContact);
-  return steps;
-}
-
-/* ---------------------------------------------------------------------- */
-
-void FixHybridMPM::grain_defaults()
-{
-  // mu(I) needs the grain size and solid density; unless given, take them from the grains
-  double sums[3] = {0, 0, 0}, all[3];
-  const bool two_d = domain->dimension == 2;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double r = atom->radius[i];
-    const double volume = two_d ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r;
-    sums[0] += 2.0 * r;
-    sums[1] += atom->rmass[i] / std::max(weight[i], 1e-300);
-    sums[2] += volume;
-  }
-  MPI_Allreduce(sums, all, 3, MPI_DOUBLE, MPI_SUM, world);
-  const bigint n = group->count(igroup);
-  if (n > 0 && !diameter_given) settings->grain_diameter = all[0] / n;
-  if (all[2] > 0 && !density_given) settings->grain_density = all[1] / all[2];
-
-  // grains made from points: the size spread, type and groups of the grains there are
-  double range[2] = {-BIG, -BIG}, range_all[2];    // -min diameter, max diameter
-  int common_mask = ~0, all_mask = ~0, smallest_type = atom->ntypes + 1, type_all = 0;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    range[0] = std::max(range[0], -2.0 * atom->radius[i]);
-    range[1] = std::max(range[1], 2.0 * atom->radius[i]);
-    common_mask &= atom->mask[i];
-    smallest_type = std::min(smallest_type, atom->type[i]);
-  }
-  MPI_Allreduce(range, range_all, 2, MPI_DOUBLE, MPI_MAX, world);
-  MPI_Allreduce(&common_mask, &all_mask, 1, MPI_INT, MPI_BAND, world);
-  MPI_Allreduce(&smallest_type, &type_all, 1, MPI_INT, MPI_MIN, world);
-  if (n > 0) {
-    const double dmin = -range_all[0], dmax = range_all[1];
-    // the template's radii are uniform in mean (1 +- p); it needs p < 0.5
-    polydispersity = std::min(0.45, (dmax - dmin) / (dmax + dmin));
-    new_grain_mask = all_mask | 1 | groupbit;
-    if (grain_type == 0) grain_type = type_all;
-  } else {
-    new_grain_mask = 1 | groupbit;
-    if (grain_type == 0) grain_type = 1;
-  }
-}
-
-/* ----------------------------------------------------------------------
-   the continuum's constants from the calibrated material (keyword material):
-   only for the contact law it was calibrated with
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::apply_material()
-{
-  const coupler::CalibratedMaterial &m = *material;
-  Pair *pair = force->pair_match("^gran/hooke", 0);
-  if (!pair)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for pair style {}, the deck uses {}; "
-                                  "measure the continuum's constants for this contact law (docs/design.md section 4.6)",
-                                  m.path, m.pair, force->pair_style ? force->pair_style : "none"));
-  const coupler::HookeanContact hooke = HookeanConstants::of(pair);
-  coupler::DeckContact deck;
-  deck.dimension = domain->dimension;
-  deck.friction = HookeanConstants::friction(pair);
-  deck.kn = hooke.kn;
-  deck.kt = hooke.kt;
-  deck.gamman = hooke.gamman;
-  deck.gammat = HookeanConstants::tangential_damping(pair);
-  const double r = 0.5 * settings->grain_diameter;
-  deck.mean_mass = settings->grain_density * (domain->dimension == 2 ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r);
-  const std::string mismatch = coupler::contact_mismatch(m, deck);
-  if (!mismatch.empty())
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for another contact law ({}); "
-                                  "measure the continuum's constants for this one (docs/design.md section 4.6)",
-                                  m.path, mismatch));
-  coupler::apply_material(m, hooke.kn, settings->grain_diameter, *settings);
-  if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: material {} ({}): Young's modulus {:.6g} Pa, Poisson's ratio "
-                                    "{:.3g}, friction angle {:.4g} deg, mu_s {:.4g}, mu_2 {:.4g}, I0 {:.4g}, "
-                                    "critical packing {:.4g}\n",
-                                    m.name, m.path, settings->youngs_modulus, settings->poisson_ratio,
-                                    settings->friction_angle_deg, settings->mu_s, settings->mu_2, settings->I0,
-                                    settings->critical_packing));
-}
-
-/* ----------------------------------------------------------------------
-   the zone oracle's keywords: on the fix line and with fix_modify
-------------------------------------------------------------------------- */
-
-bool FixHybridMPM::set_oracle_keyword(const std::string &key, const std::string &val)
-{
-  double *target = nullptr;
-  double lo = 0.0, hi = BIG;
-  const char *what = "";
-  if (key == "depth") target = &oracle->continuum_depth, what = "continuum deeper than depth + band, m";
-  else if (key == "band") target = &oracle->band, what = "half width of the hybrid band, m";
-  else if (key == "surface_packing") target = &oracle->surface_packing, hi = 1.0, what = "a packing fraction";
-  else if (key == "dilute") target = &oracle->dilute_packing, hi = 1.0, what = "a packing fraction";
-  else if (key == "shear_rate") target = &oracle->max_shear_rate, what = "cells shearing faster are discrete, 1/s";
-  else return false;
-  if (!utils::is_double(val)) illegal(fmt::format("keyword '{}' needs a number, not '{}'", key, val));
-  const double v = utils::numeric(FLERR, val.c_str(), false, lmp);
-  if (!(v > lo && v < hi))
-    illegal(fmt::format("keyword '{}' ({}) must be in ({}, {}), not {}", key, what, lo, hi == BIG ? "inf" : "1", val));
-  *target = v;
-  return true;
-}
-
-void FixHybridMPM::check_oracle()
-{
-  if (adapt_every <= 0) return;
-  // Defaults: continuum three cells below surfaces and walls, a hybrid band one cell wide on either side.
-  if (oracle->band <= 0.0) oracle->band = cell;
-  if (oracle->continuum_depth <= 0.0) oracle->continuum_depth = 3.0 * cell;
-  // A continuum cell never borders a discrete one if the band is wider than the distance of
-  // neighbouring cell centres (coupler/oracle.hpp, update_zones)
-  const double closest = 0.5 * sqrt(static_cast<double>(domain->dimension)) * cell;
-  if (!(oracle->band > closest))
-    illegal(fmt::format("keyword 'band' ({}) must exceed {:.4g} (sqrt({})/2 cells), or continuum cells may "
-                        "border discrete ones", oracle->band, closest, domain->dimension));
-  if (!(oracle->continuum_depth > oracle->band))
-    illegal(fmt::format("keyword 'depth' ({}) must exceed 'band' ({}): the cells at the free surface must stay "
-                        "discrete", oracle->continuum_depth, oracle->band));
-}
-
 int FixHybridMPM::modify_param(int narg, char **arg)
 {
-  // fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g): between runs
-  if (narg < 2 || !set_oracle_keyword(arg[0], arg[1])) return 0;
-  check_oracle();
+  // fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g), and
+  // fix_modify ID rezone_log full|summary|quiet: between runs
+  if (narg < 2) return 0;
+  if (strcmp(arg[0], "rezone_log") == 0) {
+    set_rezone_log(arg[1]);
+    return 2;
+  }
+  try {
+    if (!coupler::set_oracle_option(opt->oracle, arg[0], arg[1])) return 0;
+    coupler::check_oracle_options(*opt, domain->dimension);
+  } catch (const coupler::OptionError &e) {
+    illegal(e.what());
+  }
   return 2;
+}
+
+void FixHybridMPM::set_rezone_log(const std::string &value)
+{
+  try {
+    opt->rezone_log = coupler::rezone_log_option(value);
+  } catch (const coupler::OptionError &e) {
+    illegal(e.what());
+  }
 }
 
 /* ---------------------------------------------------------------------- */
@@ -716,26 +215,26 @@ int FixHybridMPM::modify_param(int narg, char **arg)
 void FixHybridMPM::connect()
 {
   grain_defaults();
-  if (material) apply_material();
+  if (opt->material) apply_material();
   // With cells under 2 grain diameters the oracle's packing fraction per cell counts one or two
   // grains and a cell's rests land on a few points: a published 2D collapse with 1.74 d cells
   // went non-finite as its continuum shrank (issue 14), while the same scene ran with 5 d cells.
   // (2 % slack: a deck's cell of 2 nominal diameters passes whatever its grains' sampled mean)
-  if (adapt_every > 0 && cell < 0.98 * kSmallestCellInGrains * settings->grain_diameter)
+  if (opt->adapt_every > 0 && opt->cell < 0.98 * kSmallestCellInGrains * opt->continuum.grain_diameter)
     error->all(FLERR, fmt::format("Fix hybrid/mpm: cell {} is under {} grain diameters (mean diameter {:.4g}): adaptive "
                                   "zones need cells that hold several grains. Use cell {:.4g} or more",
-                                  cell, kSmallestCellInGrains, settings->grain_diameter,
-                                  kSmallestCellInGrains * settings->grain_diameter));
+                                  opt->cell, kSmallestCellInGrains, opt->continuum.grain_diameter,
+                                  kSmallestCellInGrains * opt->continuum.grain_diameter));
   coupler::Hello hello;
   coupler::set_text(hello.host, fmt::format("LAMMPS {}", lmp->version));
   coupler::set_text(hello.units, update->unit_style);
   hello.dimension = domain->dimension;
-  hello.model = model;
-  hello.mpm_every = every;
-  hello.cell = cell;
+  hello.model = opt->model;
+  hello.mpm_every = opt->every;
+  hello.cell = opt->cell;
   hello.dt = update->dt;
-  hello.reply_timeout = reply_timeout;
-  hello.idle_timeout = idle_timeout;
+  hello.reply_timeout = opt->reply_timeout;
+  hello.idle_timeout = opt->idle_timeout;
   for (int d = 0; d < 3; d++) {
     hello.box_lo[d] = domain->boxlo[d];
     hello.box_hi[d] = domain->boxhi[d];
@@ -744,15 +243,15 @@ void FixHybridMPM::connect()
   hello.time = dem_time();
   // gravity of the grains acts on the continuum too (and sets the energy ledger's potential
   // energy); read once here, checked at every later run's setup
-  dem_gravity(settings->gravity);
+  dem_gravity(opt->continuum.gravity);
   // the agreement's relaxation time: half the stiffest contact's duration, the time over which
   // grains in contact equalise their velocities (10 steps where the contact time is unknown)
-  if (relax_time < 0.0) {
+  if (opt->relax_time < 0.0) {
     std::string why;
     const double steps = dem_steps_per_contact(why);
-    settings->agreement_time = 0.5 * (steps < BIG ? steps : 20.0) * update->dt;
-  } else settings->agreement_time = relax_time;
-  hello.continuum = *settings;
+    opt->continuum.agreement_time = 0.5 * (steps < BIG ? steps : 20.0) * update->dt;
+  } else opt->continuum.agreement_time = opt->relax_time;
+  hello.continuum = opt->continuum;
   for (int d = 0; d < 3; d++)
     for (int side = 0; side < 2; side++) {
       const double v = container_edge(d, side);
@@ -768,197 +267,20 @@ void FixHybridMPM::connect()
     error->all(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
   }
   coupler::set_peer(link.get());
+  session = std::make_unique<coupler::DemSession>(*link, world, comm->me);
   if (comm->me == 0)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: handshake ok with the MPM process ({} rank(s)): {}; "
                                     "protocol {}, release {}, cell {}, model {}, exchange every {} step(s)\n",
                                     link->remote_size(), link->peer_info(), coupler::kProtocolVersion,
-                                    coupler::release_version(), cell, coupler::model_name(model), every));
-  if (comm->me == 0 && settings->touched_faces != 0) {
+                                    coupler::release_version(), opt->cell, coupler::model_name(opt->model), opt->every));
+  if (comm->me == 0 && opt->continuum.touched_faces != 0) {
     std::string faces;
     for (int f = 0; f < 6; f++)
-      if (settings->touched_faces & coupler::face_bit(f / 2, f % 2))
-        faces += std::string(faces.empty() ? "" : " ") + kFaceNames[f];
+      if (opt->continuum.touched_faces & coupler::face_bit(f / 2, f % 2))
+        faces += std::string(faces.empty() ? "" : " ") + coupler::kFaceNames[f];
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: the continuum may touch the container faces {} (its wall law "
                                     "there); the other faces are discrete boundaries\n", faces));
   }
-}
-
-/* ----------------------------------------------------------------------
-   zone of every grid cell from the continuum regions (same on all ranks)
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::compute_zones()
-{
-  const std::vector<Region *> regions = prematched(region_ids);
-  auto inside = [&](const auto &x) { return in_any(regions, x[0], x[1], x.size() == 3 ? x[2] : 0.0); };
-  if (domain->dimension == 2) {
-    const auto grid = box_grid<2>(domain, cell);
-    zones = coupler::zones_from_regions<2>(grid, Eigen::Map<const Vec<2>>(domain->boxlo),
-                                            Eigen::Map<const Vec<2>>(domain->boxhi), hybrid_width, inside);
-  } else {
-    const auto grid = box_grid<3>(domain, cell);
-    zones = coupler::zones_from_regions<3>(grid, Eigen::Map<const Vec<3>>(domain->boxlo),
-                                            Eigen::Map<const Vec<3>>(domain->boxhi), hybrid_width, inside);
-  }
-  if (region_ids.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
-  if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, cell));
-  else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, cell));
-  // A continuum region that holds no cell centre of the box converts nothing: a region smaller
-  // than a cell, or outside the box, is a mistake, not an empty continuum.
-  for (std::size_t k = 0; k < regions.size(); ++k) {
-    double centre[3] = {0, 0, 0};
-    bool any = false;
-    for (std::size_t c = 0; c < zones.size() && !any; ++c) {
-      cell_centre(c, centre);
-      bool in_box = true;
-      for (int d = 0; d < domain->dimension; d++)
-        in_box = in_box && centre[d] >= domain->boxlo[d] && centre[d] <= domain->boxhi[d];
-      any = in_box && regions[k]->match(centre[0], centre[1], domain->dimension == 3 ? centre[2] : 0.0);
-    }
-    if (!any)
-      error->all(FLERR, fmt::format("Fix hybrid/mpm: continuum region '{}' contains no grid cell centre of the box "
-                                    "(cell {}): make the region span at least one cell, or the cell smaller",
-                                    region_ids[k], cell));
-  }
-  if (comm->me == 0 && !region_ids.empty()) {
-    // cells of the box only (the padding cells around it are continuum by convention)
-    bigint n[3] = {0, 0, 0};
-    double centre[3] = {0, 0, 0};
-    for (std::size_t c = 0; c < zones.size(); ++c) {
-      cell_centre(c, centre);
-      bool in_box = true;    // overlapping it: a face may lie off the cell lattice
-      for (int d = 0; d < domain->dimension; d++)
-        in_box = in_box && centre[d] + 0.5 * cell > domain->boxlo[d] && centre[d] - 0.5 * cell < domain->boxhi[d];
-      if (in_box) n[zones[c]]++;
-    }
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} grid cells in the box: {} continuum, {} hybrid, {} discrete\n",
-                                    n[0] + n[1] + n[2], n[coupler::kContinuum], n[coupler::kHybrid],
-                                    n[coupler::kDiscrete]));
-  }
-}
-
-/* ----------------------------------------------------------------------
-   grid cells whose centre lies in a discrete region (evaluated now: regions
-   may move); the oracle takes them as boundaries of the material
-------------------------------------------------------------------------- */
-
-std::vector<std::uint64_t> FixHybridMPM::discrete_cells()
-{
-  std::vector<std::uint64_t> cells;
-  if (discrete_region_ids.empty()) return cells;
-  const std::vector<Region *> regions = prematched(discrete_region_ids);
-  double centre[3] = {0.0, 0.0, 0.0};
-  for (std::size_t c = 0; c < zones.size(); ++c) {
-    cell_centre(c, centre);
-    if (in_any(regions, centre[0], centre[1], centre[2])) cells.push_back(c);
-  }
-  return cells;
-}
-
-/* ----------------------------------------------------------------------
-   the fix's named regions by kind (for the checks that they exist), and
-   regions ready to match at this step (they may move)
-------------------------------------------------------------------------- */
-
-std::array<std::pair<const char *, const std::vector<std::string> *>, 2> FixHybridMPM::named_regions() const
-{
-  return {{{"continuum", &region_ids}, {"discrete", &discrete_region_ids}}};
-}
-
-std::vector<Region *> FixHybridMPM::prematched(const std::vector<std::string> &ids) const
-{
-  std::vector<Region *> regions;
-  for (const auto &rid : ids) {
-    Region *r = domain->regions[domain->find_region(rid)];
-    r->prematch();
-    regions.push_back(r);
-  }
-  return regions;
-}
-
-bool FixHybridMPM::in_any(const std::vector<Region *> &regions, double x, double y, double z)
-{
-  for (Region *r : regions)
-    if (r->match(x, y, z)) return true;
-  return false;
-}
-
-void FixHybridMPM::cell_centre(std::size_t c, double *centre) const
-{
-  if (domain->dimension == 2) {
-    const auto &grid = transfer2->grid();
-    const Vec<2> x = coupler::cell_center<2>(grid, coupler::cell_coords<2>(grid, c));
-    for (int d = 0; d < 2; d++) centre[d] = x[d];
-  } else {
-    const auto &grid = transfer3->grid();
-    const Vec<3> x = coupler::cell_center<3>(grid, coupler::cell_coords<3>(grid, c));
-    for (int d = 0; d < 3; d++) centre[d] = x[d];
-  }
-}
-
-template <>
-coupler::GrainTransfer<2> &FixHybridMPM::transfer<2>()
-{
-  return *transfer2;
-}
-
-template <>
-coupler::GrainTransfer<3> &FixHybridMPM::transfer<3>()
-{
-  return *transfer3;
-}
-
-/* ----------------------------------------------------------------------
-   time of the next exchange if it is certain now, else -1: the MPM process
-   then advances to it while LAMMPS computes its steps. Not certain: the run
-   ends first (unless the end-of-run output frame is an exchange), or a
-   restart file is written before it (the MPM state must then be that of
-   this exchange)
-------------------------------------------------------------------------- */
-
-double FixHybridMPM::next_exchange_time(bool force_output) const
-{
-  const bigint now = update->ntimestep, next = now + every;
-  if (force_output) return -1.0;
-  if (adapt_every > 0 && converted && now % adapt_every == 0 && now < update->laststep) return -1.0;    // a rezone
-  if (output->restart_flag && output->next_restart >= now && output->next_restart < next) return -1.0;
-  if (next <= update->laststep) return dem_time(next);
-  if (settings->output_every > 0 && update->laststep > now) return dem_time(update->laststep);    // end-of-run frame
-  return -1.0;
-}
-
-coupler::StepHeader FixHybridMPM::step_header(int kind) const
-{
-  coupler::StepHeader h;
-  h.step = update->ntimestep;
-  h.time = dem_time();
-  h.dt = update->dt;
-  h.kind = kind;
-  return h;
-}
-
-double FixHybridMPM::dem_time() const
-{
-  return dem_time(update->ntimestep);
-}
-
-// the same expression for every step, so a time announced in advance is the same bits
-// as the time of that step when it comes
-double FixHybridMPM::dem_time(bigint step) const
-{
-  if (clock_step < 0) return update->atime + (step - update->atimestep) * update->dt;
-  return clock_time + (step - clock_step) * clock_dt;
-}
-
-int FixHybridMPM::zone_of(const double *x) const
-{
-  if (zones.empty()) return coupler::kDiscrete;
-  if (domain->dimension == 2) {
-    const auto &grid = transfer2->grid();
-    return zones[coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, Eigen::Map<const Vec<2>>(x)))];
-  }
-  const auto &grid = transfer3->grid();
-  return zones[coupler::cell_index<3>(grid, coupler::cell_of<3>(grid, Eigen::Map<const Vec<3>>(x)))];
 }
 
 /* ---------------------------------------------------------------------- */
@@ -981,497 +303,22 @@ void FixHybridMPM::setup(int /*vflag*/)
   if (zones.empty()) compute_zones();
   if (restored && !state_loaded) load_mpm_state();
   if (!ledger_started) {
-    ledger.start = ledger.energy = grain_energy();
+    ledger->start = ledger->energy = grain_energy();
     continuum_start = last_ack->energy;
     ledger_started = true;
   }
   // a rezone left pending at the end of the last run is dropped (its stress is of a step
   // before the commands between the runs); the oracle runs again at its next step
   rezone_pending = false;
-  if (!converted && (!region_ids.empty() || adapt_every > 0))
-    schedule_rezone(region_ids.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
-  if (adapt_every > 0) {
+  interval_rezones->restart(update->ntimestep + 1);
+  run_rezones->restart(update->ntimestep + 1);
+  if (!converted && (!opt->continuum_regions.empty() || opt->adapt_every > 0))
+    schedule_rezone(opt->continuum_regions.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
+  if (opt->adapt_every > 0) {
     // the Love-Weber stress of the first oracle step needs its per-atom virial
-    const bigint first = (update->ntimestep / adapt_every + 1) * adapt_every;
+    const bigint first = (update->ntimestep / opt->adapt_every + 1) * opt->adapt_every;
     stress_compute()->addstep(first);
   }
-}
-
-/* ----------------------------------------------------------------------
-   a rezone at the next step's pre_exchange, with the Love-Weber stress of
-   this step, kept per atom: another fix's pre_exchange may delete, add or
-   move atoms before ours (fix evaporate, deposit, balance), so a local
-   index is not the same atom's then; LAMMPS carries atom_stress with them
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::schedule_rezone(int source)
-{
-  store_atom_stress();
-  rezone_pending = true;
-  rezone_source = source;
-  next_reneighbor = update->ntimestep + 1;
-}
-
-void FixHybridMPM::store_atom_stress()
-{
-  Compute *c = stress_compute();
-  c->compute_peratom();
-  for (int i = 0; i < atom->nlocal; i++)
-    for (int k = 0; k < 6; k++) atom_stress[i][k] = c->array_atom[i][k];
-}
-
-/* ---------------------------------------------------------------------- */
-
-void FixHybridMPM::pre_exchange()
-{
-  if (!rezone_pending || update->ntimestep != next_reneighbor) return;
-  if (domain->dimension == 2) rezone<2>(rezone_source);
-  else rezone<3>(rezone_source);
-  rezone_pending = false;
-  converted = true;
-}
-
-/* ----------------------------------------------------------------------
-   this rank's grains per grid cell: their volume (the oracle's packing
-   fraction) and carried mass, sparse: only cells holding grains
-------------------------------------------------------------------------- */
-
-template <int D>
-std::vector<coupler::CellGrains> FixHybridMPM::cell_grains()
-{
-  const auto &grid = transfer<D>().grid();
-  std::map<std::size_t, coupler::CellGrains> cells;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const auto c = coupler::cell_of<D>(grid, Eigen::Map<const Vec<D>>(atom->x[i]));
-    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) continue;
-    const std::size_t k = coupler::cell_index<D>(grid, c);
-    auto &g = cells[k];
-    g.cell = k;
-    g.volume += coupler::grain_volume<D>(atom->radius[i]);
-    g.mass += atom->rmass[i];
-  }
-  std::vector<coupler::CellGrains> out;
-  out.reserve(cells.size());
-  for (const auto &kv : cells) out.push_back(kv.second);
-  return out;
-}
-
-template <int D>
-const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
-{
-  // 10 x 10 disks or 6 x 6 x 6 balls per period: tiles much larger than a grain, made the
-  // same on every rank (deterministic in the seed)
-  if constexpr (D == 2) {
-    if (!template2)
-      template2 = std::make_unique<coupler::PackingTemplate<2>>(
-          coupler::make_packing_template<2>(10, polydispersity, static_cast<std::uint32_t>(template_seed)));
-    return *template2;
-  } else {
-    if (!template3)
-      template3 = std::make_unique<coupler::PackingTemplate<3>>(
-          coupler::make_packing_template<3>(6, polydispersity, static_cast<std::uint32_t>(template_seed)));
-    return *template3;
-  }
-}
-
-/* ----------------------------------------------------------------------
-   enrichment, in the cells whose zone wants grains and which have too few
-   for the material there (or, discrete, hold points): new grains are cut
-   from the packing template where the points are and where no grain of any
-   rank is in the way, nearest the points' centre first, as many as the
-   cell's material (points plus old grains) fills at their solid mass; each
-   is made at its weight times its solid mass, with the continuum's affine
-   velocity. Their sums join those of the cell's old grains in `sums`: the
-   MPM process then corrects old and new grains together (rezone step 4).
-   All ranks compute the same grains; each makes those in its sub-domain.
-   Returns the number this rank made.
-------------------------------------------------------------------------- */
-
-template <int D>
-bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
-                                 std::map<std::size_t, coupler::GrainSums<D>> &sums)
-{
-  using Mat = Eigen::Matrix<double, D, D>;
-  const auto &grid = transfer<D>().grid();
-  bigint made = 0;
-  std::vector<std::size_t> making;    // planned cells that make grains
-  for (std::size_t k = 0; k < cells.size(); ++k)
-    if (cells[k].make_grains) making.push_back(k);
-  if (making.empty()) return made;
-
-  // the old grains of these cells, over all ranks: what they carry, and their sums at their
-  // solid mass (as members of the new body set)
-  std::vector<coupler::BodySums<D>> carried(making.size()), solid(making.size());
-  for (std::size_t j = 0; j < making.size(); ++j) {
-    const auto it = sums.find(making[j]);
-    if (it != sums.end()) carried[j] = it->second.carried, solid[j] = it->second.solid;
-  }
-  double **x = atom->x;
-  const int nlocal = atom->nlocal;
-  sum_over_ranks<D>(carried);
-  sum_over_ranks<D>(solid);
-
-  // candidates of every such cell (the same list on every rank)
-  const auto &tmpl = packing_template<D>();
-  std::vector<std::vector<coupler::NewGrain<D>>> candidates(making.size());
-  std::map<std::size_t, std::vector<std::pair<std::size_t, std::size_t>>> by_cell;    // cell -> (j, index)
-  double largest = 0.0;
-  for (std::size_t j = 0; j < making.size(); ++j) {
-    const auto &cell = cells[making[j]];
-    const auto c = coupler::cell_coords<D>(grid, cell.cell);
-    for (const auto &g : coupler::template_candidates<D>(cell.cell, grid, tmpl, settings->grain_diameter)) {
-      if (!(coupler::occupancy_bit<D>(grid, c, g.x) & cell.occupancy)) continue;    // no material there
-      // inside the continuum's container (where its points are held; a silo's floor blocks lie
-      // outside it, and a grain made inside a wall would be shot out by the wall's contact)
-      bool inside = true;
-      for (int a = 0; a < D; ++a)
-        inside = inside && g.x[a] - g.radius >= container_edge(a, 0) && g.x[a] + g.radius <= container_edge(a, 1);
-      if (!inside) continue;
-      by_cell[cell.cell].emplace_back(j, candidates[j].size());
-      candidates[j].push_back(g);
-      largest = std::max(largest, g.radius);
-    }
-  }
-  // room of each candidate: the largest radius no grain (of any group: walls of frozen grains
-  // too) overlaps. A candidate a grain overlaps a little shrinks to fit, down to
-  // kSmallestShrink of its size, so the new packing closes up with the old one; one that would
-  // have to shrink more is dropped.
-  std::vector<std::size_t> offset(making.size() + 1, 0);
-  for (std::size_t j = 0; j < making.size(); ++j) offset[j + 1] = offset[j] + candidates[j].size();
-  std::vector<double> room(offset.back(), BIG), room_all(offset.back(), BIG);
-  for (int i = 0; i < nlocal; i++) {
-    const Vec<D> xi = Eigen::Map<const Vec<D>>(x[i]);
-    const int reach = static_cast<int>(std::ceil((atom->radius[i] + largest) / grid.dx));
-    coupler::for_each_cell_within<D>(grid, coupler::cell_of<D>(grid, xi), reach, [&](std::uint64_t cell) {
-      const auto it = by_cell.find(cell);
-      if (it == by_cell.end()) return;
-      for (const auto &[j, n] : it->second) {
-        double &r = room[offset[j] + n];
-        r = std::min(r, (candidates[j][n].x - xi).norm() - atom->radius[i]);
-      }
-    });
-  }
-  MPI_Allreduce(room.data(), room_all.data(), static_cast<int>(room.size()), MPI_DOUBLE, MPI_MIN, world);
-
-  const double zmid = 0.5 * (domain->boxlo[2] + domain->boxhi[2]);
-  for (std::size_t j = 0; j < making.size(); ++j) {
-    const auto &cell = cells[making[j]];
-    std::vector<coupler::NewGrain<D>> kept;
-    for (std::size_t n = 0; n < candidates[j].size(); ++n) {
-      coupler::NewGrain<D> g = candidates[j][n];
-      // a gap of coupler::kTemplateGap diameters, as between template grains
-      const double fit = room_all[offset[j] + n] - coupler::kTemplateGap * settings->grain_diameter;
-      if (fit < kSmallestShrink * g.radius) continue;
-      g.radius = std::min(g.radius, fit);
-      kept.push_back(g);
-    }
-    coupler::CellMoments<D> material = cell.points;
-    material.add(carried[j].moments);
-    if (!(material.mass > 0)) continue;
-    // the new grains move with the continuum's affine field about its centre of mass
-    const Vec<D> centre = coupler::cell_center<D>(grid, coupler::cell_coords<D>(grid, cell.cell));
-    const Vec<D> about = cell.points.mass > 0 ? Vec<D>(cell.points.first_moment() / cell.points.mass) : centre;
-    const Vec<D> drift = cell.points.mass > 0 ? Vec<D>(cell.points.momentum() / cell.points.mass) : Vec<D>::Zero();
-    const Mat gradient = Eigen::Map<const Mat>(cell.gradient);
-    // as many new grains as the material fills at their solid mass, nearest its centre first
-    // (the same order on every rank)
-    std::stable_sort(kept.begin(), kept.end(), [&](const auto &a, const auto &b) {
-      return (a.x - about).squaredNorm() < (b.x - about).squaredNorm();
-    });
-    double filled = solid[j].moments.mass;    // the old grains' and the fitted new ones' solid mass
-    std::size_t fitted = 0;
-    for (auto &g : kept) {
-      g.mass = solid_mass(g.radius);
-      if (filled + 0.5 * g.mass > material.mass) break;
-      g.v = drift + gradient * (g.x - about);
-      g.omega.setZero();
-      filled += g.mass;
-      ++fitted;
-    }
-    kept.resize(fitted);
-    // made at their weight times their solid mass, with the affine field's velocity: the MPM
-    // process corrects them with the cell's old grains (their sums go with those)
-    const double share = cell.grain_weight;
-    for (const auto &g : kept) {
-      double coord[3] = {0.0, 0.0, zmid};
-      for (int a = 0; a < D; ++a) coord[a] = g.x[a];
-      bool mine = true;
-      for (int a = 0; a < D; ++a) mine = mine && coord[a] >= domain->sublo[a] && coord[a] < domain->subhi[a];
-      if (!mine) continue;
-      atom->avec->create_atom(grain_type, coord);
-      const int n = atom->nlocal - 1;
-      atom->mask[n] = new_grain_mask;
-      atom->radius[n] = g.radius;
-      atom->rmass[n] = share * g.mass;
-      for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? g.v[a] : 0.0, atom->omega[n][a] = 0.0;
-      modify->create_attribute(n);    // every fix's per-atom data (pair history, ours)
-      weight[n] = share;
-      auto &sum = sums[making[j]];
-      sum.solid.moments.cell = sum.carried.moments.cell = cell.cell;
-      sum.solid.add_body(g.x, g.v, g.mass, coupler::Spin<D>::Zero(), inertia * g.radius * g.radius, Mat::Zero(), centre);
-      made++;
-    }
-  }
-  return made;
-}
-
-double FixHybridMPM::solid_mass(double radius) const
-{
-  const double volume = domain->dimension == 2 ? coupler::grain_volume<2>(radius) : coupler::grain_volume<3>(radius);
-  return settings->grain_density * volume;
-}
-
-double FixHybridMPM::container_edge(int axis, int side) const
-{
-  const int k = 2 * axis + side;
-  return container_given[k] ? container_value[k] : side ? domain->boxhi[axis] : domain->boxlo[axis];
-}
-
-/* ----------------------------------------------------------------------
-   sums of the same cells over all DEM ranks (every field but the cell index)
-------------------------------------------------------------------------- */
-
-template <int D>
-void FixHybridMPM::sum_over_ranks(std::vector<coupler::BodySums<D>> &sums)
-{
-  constexpr std::size_t values = coupler::kBodySumsValues<D>;
-  std::vector<double> local(sums.size() * values), all(sums.size() * values);
-  for (std::size_t k = 0; k < sums.size(); ++k) coupler::pack_summed_fields<D>(sums[k], &local[k * values]);
-  MPI_Allreduce(local.data(), all.data(), static_cast<int>(local.size()), MPI_DOUBLE, MPI_SUM, world);
-  for (std::size_t k = 0; k < sums.size(); ++k) coupler::unpack_summed_fields<D>(&all[k * values], sums[k]);
-}
-
-/* ----------------------------------------------------------------------
-   a rezone (coupler/protocol.hpp): the zones change (oracle, or the map of
-   the continuum regions at the start), and the material of every cell whose
-   zone changed moves between grains and points with exact mass, momentum
-   and angular momentum: grains are deleted (homogenisation), made from the
-   points (enrichment) or take a new share of the cell's material; the MPM
-   process does the same for the points. Love-Weber stress of the grains
-   goes into the new points.
-------------------------------------------------------------------------- */
-
-template <int D>
-void FixHybridMPM::rezone(int source)
-{
-  check_finite_grains("before the rezone");
-  const auto &grid = transfer<D>().grid();
-  const std::string at = " of the rezone at step " + std::to_string(update->ntimestep);
-  // as fix pour: atoms are created and deleted now, the ghosts are rebuilt after
-  if (atom->map_style != Atom::MAP_NONE) atom->map_clear();
-  atom->nghost = 0;
-  atom->avec->clear_bonus();
-
-  int status = 0;
-  std::string what;
-  coupler::StepAck ack;
-  auto mpm_error = [&](const coupler::Message &m) {
-    ack = m.as<coupler::StepAck>();
-    status = 2;
-    what = "the MPM process could not rezone: " + coupler::get_text(ack.message);
-  };
-
-  double grains_before[7], grains_after[7];
-  grain_totals(grains_before);
-  close_dem_bracket();
-
-  // 1. zones: the grains' volume per cell goes to the MPM process, which runs the oracle
-  const std::vector<coupler::CellGrains> volumes = cell_grains<D>();
-  std::vector<signed char> new_zones;
-  std::vector<coupler::RezoneCell<D>> cells;
-  try {
-    if (comm->me == 0) {
-      coupler::StepHeader h = step_header(coupler::kStepRezone);
-      h.zone_source = source;
-      link->send_struct(0, coupler::kTagStep, h, "the rezone header" + at);
-      if (source == coupler::kZonesGiven) link->send_array(0, coupler::kTagZones, zones, "the zone map" + at);
-      else {
-        link->send_struct(0, coupler::kTagOracle, *oracle, "the oracle settings" + at);
-        link->send_array(0, coupler::kTagDiscreteCells, discrete_cells(), "the cells of the discrete regions" + at);
-      }
-    }
-    link->send_array(0, coupler::kTagVolumes, volumes, "the grain volumes" + at);
-    const coupler::Message m = link->receive(0, {coupler::kTagZones, coupler::kTagStepAck}, "the new zone map" + at);
-    if (m.tag == coupler::kTagStepAck) mpm_error(m);
-    else {
-      new_zones = m.as_array<signed char>();
-      if (new_zones.size() != zones.size())
-        throw coupler::PeerError(fmt::format("protocol error: a zone map of {} cells for a grid of {}",
-                                             new_zones.size(), zones.size()));
-      cells = link->receive(0, {coupler::kTagRezoneCells}, "the cells to rezone" + at)
-                  .as_array<coupler::RezoneCell<D>>();
-    }
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  check_all(status, what);
-  zones = std::move(new_zones);
-
-  // 2. the sums of the grains in the moving cells, before anything changes
-  std::map<std::uint64_t, std::size_t> slot;
-  for (std::size_t k = 0; k < cells.size(); ++k) slot.emplace(cells[k].cell, k);
-  auto cell_of_atom = [&](int i) { return slot_of_cell_at<D>(grid, atom->x[i], slot); };
-  const int nlocal_old = atom->nlocal;
-  std::map<std::size_t, coupler::GrainSums<D>> sums;
-  {
-    double **x = atom->x, **v = atom->v, **omega = atom->omega;
-    double *rmass = atom->rmass, *radius = atom->radius;
-    for (int i = 0; i < nlocal_old; i++) {
-      if (!(atom->mask[i] & groupbit)) continue;
-      const std::int64_t k = cell_of_atom(i);
-      if (k < 0) continue;
-      coupler::Spin<D> omega_i;
-      if constexpr (D == 2) omega_i[0] = omega[i][2];
-      else omega_i = Eigen::Map<const Eigen::Vector3d>(omega[i]);
-      Eigen::Matrix<double, D, D> sv;
-      const double *sa = atom_stress[i];    // xx yy zz xy xz yz
-      if constexpr (D == 2) sv << sa[0], sa[3], sa[3], sa[1];
-      else sv << sa[0], sa[3], sa[4], sa[3], sa[1], sa[5], sa[4], sa[5], sa[2];
-      const auto c = coupler::cell_coords<D>(grid, cells[k].cell);
-      const Vec<D> centre = coupler::cell_center<D>(grid, c), xi = Eigen::Map<const Vec<D>>(x[i]),
-                   vi = Eigen::Map<const Vec<D>>(v[i]);
-      const double e = inertia * radius[i] * radius[i], solid = solid_mass(radius[i]);
-      auto &sum = sums[static_cast<std::size_t>(k)];
-      sum.carried.moments.cell = sum.solid.moments.cell = cells[k].cell;
-      sum.carried.add_body(xi, vi, rmass[i], rmass[i] * e * omega_i, e, sv, centre);
-      sum.solid.add_body(xi, vi, solid, solid * e * omega_i, e, Eigen::Matrix<double, D, D>::Zero(), centre);
-    }
-  }
-
-  // 3. enrichment (collective over the DEM ranks): new grains, their sums with the old ones'
-  const bigint made_local = make_grains<D>(cells, sums);
-
-  // 4. the MPM process answers what the grains of each cell become
-  std::vector<coupler::GrainCorrection<D>> corrections;
-  try {
-    std::vector<coupler::GrainSums<D>> sum_list;
-    for (const auto &kv : sums) sum_list.push_back(kv.second);
-    link->send_array(0, coupler::kTagGrainSums, sum_list, "the grain sums" + at);
-    const coupler::Message m =
-        link->receive(0, {coupler::kTagCorrections, coupler::kTagStepAck}, "the grain corrections" + at);
-    if (m.tag == coupler::kTagStepAck) mpm_error(m);
-    else corrections = m.as_array<coupler::GrainCorrection<D>>();
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  check_all(status, what);
-
-  // 5. apply them: delete, or scale and add the rigid velocity increment
-  double **x = atom->x, **v = atom->v, **omega = atom->omega;    // (new grains may have moved the arrays)
-  double *rmass = atom->rmass;
-  std::map<std::uint64_t, const coupler::GrainCorrection<D> *> correction_of;
-  for (const auto &gc : corrections) correction_of[gc.cell] = &gc;
-  std::vector<char> remove(atom->nlocal, 0);
-  bigint hybrid_local = 0;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const std::int64_t k = cell_of_atom(i);
-    if (k < 0) continue;
-    const auto it = correction_of.find(cells[k].cell);
-    if (it == correction_of.end()) continue;
-    const coupler::GrainCorrection<D> &gc = *it->second;
-    if (gc.remove) {
-      remove[i] = 1;
-      continue;
-    }
-    coupler::RigidCorrection<D> fix;
-    fix.mass_factor = gc.mass_factor;
-    fix.velocity = Eigen::Map<const Vec<D>>(gc.velocity);
-    fix.omega = Eigen::Map<const coupler::Spin<D>>(gc.omega);
-    fix.centre = Eigen::Map<const Vec<D>>(gc.centre);
-    const Vec<D> dv = fix.increment(Eigen::Map<const Vec<D>>(x[i]));
-    for (int a = 0; a < D; ++a) v[i][a] += dv[a];
-    if constexpr (D == 2) omega[i][2] += fix.omega[0];
-    else
-      for (int a = 0; a < 3; a++) omega[i][a] += fix.omega[a];
-    rmass[i] = gc.mass_factor * solid_mass(atom->radius[i]);    // the correction scales the solid sums
-    weight[i] = gc.weight;
-    if (gc.weight < 1.0) hybrid_local++;
-  }
-  bigint deleted_local = 0;
-  AtomVec *avec = atom->avec;
-  for (int i = static_cast<int>(remove.size()) - 1; i >= 0; i--)    // as fix evaporate: the last atom fills the gap
-    if (remove[i]) {
-      avec->copy(atom->nlocal - 1, i, 1);
-      atom->nlocal--;
-      deleted_local++;
-    }
-
-  // 6. the grains' support force now (deleted, made, rescaled grains changed it): the MPM
-  // process balances the points' reaction with it; then the acknowledgement with its totals
-  double force_local[3] = {0.0, 0.0, 0.0}, force[3];
-  for (int i = 0; i < atom->nlocal; i++)
-    for (int a = 0; a < 3; a++) force_local[a] += atom->rmass[i] * support[i][a];
-  MPI_Allreduce(force_local, force, 3, MPI_DOUBLE, MPI_SUM, world);
-  try {
-    if (comm->me == 0)
-      link->send_array(0, coupler::kTagSupport, std::vector<double>(force, force + 3), "the grains' support force" + at);
-    ack = link->receive(0, {coupler::kTagStepAck}, "the rezone's acknowledgement" + at).as<coupler::StepAck>();
-    if (ack.status != 0) status = 2, what = "the MPM process could not rezone: " + coupler::get_text(ack.message);
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  check_all(status, what);
-  *last_ack = ack;
-
-  grain_totals(grains_after);
-  const double energy_after = grain_energy();
-  ledger.rezone += energy_after - ledger.energy;
-  ledger.energy = energy_after;
-  // how far the carried masses drifted from the grains' share of their solid mass
-  double drift[2] = {-BIG, 0.0}, drift_all[2];    // -lightest, heaviest
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double f = atom->rmass[i] / (weight[i] * solid_mass(atom->radius[i]));
-    drift[0] = std::max(drift[0], -f), drift[1] = std::max(drift[1], f);
-  }
-  MPI_Allreduce(drift, drift_all, 2, MPI_DOUBLE, MPI_MAX, world);
-  bigint local[3] = {deleted_local, made_local, hybrid_local}, all[3];
-  MPI_Allreduce(local, all, 3, MPI_LMP_BIGINT, MPI_SUM, world);
-  // as fix deposit and fix pour do: made grains must not overflow the atom count or the IDs
-  if (all[1] > all[0] && all[1] - all[0] > MAXBIGINT - atom->natoms)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: too many total atoms: making {} grains from points at step {} "
-                                  "would exceed the largest atom count LAMMPS allows ({})",
-                                  all[1], update->ntimestep, MAXBIGINT));
-  if (all[1] > 0) {
-    tagint maxtag = 0, maxtag_all = 0;
-    for (int i = 0; i < atom->nlocal; i++) maxtag = std::max(maxtag, atom->tag[i]);    // new grains: tag 0
-    MPI_Allreduce(&maxtag, &maxtag_all, 1, MPI_LMP_TAGINT, MPI_MAX, world);
-    if (all[1] >= static_cast<bigint>(MAXTAGINT) - maxtag_all)
-      error->all(FLERR, fmt::format("Fix hybrid/mpm: new atom IDs exceed the largest ID allowed ({}): making {} "
-                                    "grains from points at step {} after ID {}; compact the IDs (reset_atom_ids) or "
-                                    "build LAMMPS with -DLAMMPS_BIGBIG",
-                                    MAXTAGINT, all[1], update->ntimestep, maxtag_all));
-  }
-  atom->natoms += all[1] - all[0];
-  if (all[1] > 0) atom->tag_extend();
-  if (atom->map_style != Atom::MAP_NONE) {
-    atom->map_init();
-    atom->map_set();
-  }
-  if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: step {}: {} grains became {} material points, {} grains are "
-                                    "hybrid (weight {}), {} grains made from points; {} cells moved; grid cells "
-                                    "in the box: {} continuum, {} hybrid, {} discrete; {} cells gave their rest of material "
-                                    "to nearby points, {} kept it; carried mass / solid mass {:.3g} to {:.3g}\n",
-                                    update->ntimestep, all[0], ack.points_made, all[2], settings->grain_weight, all[1],
-                                    ack.moved_cells, ack.zone_cells[coupler::kContinuum],
-                                    ack.zone_cells[coupler::kHybrid], ack.zone_cells[coupler::kDiscrete],
-                                    ack.rests_moved, ack.rests_kept, -drift_all[0], drift_all[1]));
-  // what the rezone did to the totals of grains plus points (exact up to round-off)
-  if (comm->me == 0) {
-    double after[7] = {ack.mass, ack.momentum[0], ack.momentum[1], ack.momentum[2], ack.angular[0], ack.angular[1],
-                       ack.angular[2]};
-    std::string line = fmt::format("fix hybrid/mpm: step {}: totals before/after the rezone:", update->ntimestep);
-    for (int k = 0; k < 7; k++)
-      line += fmt::format(" {:.17g} {:.17g}", grains_before[k] + ack.before[k], grains_after[k] + after[k]);
-    utils::logmesg(lmp, line + "\n");
-  }
-  check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
 }
 
 /* ---------------------------------------------------------------------- */
@@ -1490,239 +337,19 @@ void FixHybridMPM::end_of_step()
       kicked += rmass[i] * (v[i][a] + 0.5 * dv) * dv;
       v[i][a] += dv;
     }
-  ledger.support_open += kicked;
+  ledger->support_open += kicked;
   const bigint step = update->ntimestep;
-  const bool oracle_next = adapt_every > 0 && converted && (step + 1) % adapt_every == 0;
+  const bool oracle_next = opt->adapt_every > 0 && converted && (step + 1) % opt->adapt_every == 0;
   if (oracle_next) stress_compute()->addstep(step + 1);    // its virial
-  if (step % every != 0) return;
+  // LAMMPS prints its thermo output right after this step's end_of_step (Output::write)
+  if (output->next_thermo == step) log_rezone_summary(false);
+  if (step % opt->every != 0) return;
   if (domain->dimension == 2) exchange<2>(false);
   else exchange<3>(false);
   // the zone oracle right after this exchange (the MPM process did not advance past it),
   // unless the run ends here: the next run's setup reorders the atoms
-  if (adapt_every > 0 && converted && step % adapt_every == 0 && step < update->laststep)
+  if (opt->adapt_every > 0 && converted && step % opt->adapt_every == 0 && step < update->laststep)
     schedule_rezone(coupler::kZonesOracle);
-}
-
-/* ----------------------------------------------------------------------
-   one coupling exchange: coupled grains' weighted mass and momentum per node
-   go to the MPM process, the agreed node velocities come back
-------------------------------------------------------------------------- */
-
-/* ----------------------------------------------------------------------
-   every grain of the group must have a finite position, velocity and mass
-   before it is mapped to grid cells and nodes (a NaN there indexed the grid
-   out of range); collective, an error naming the first bad atom
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::check_finite_grains(const std::string &when)
-{
-  double **x = atom->x, **v = atom->v;
-  const double *rmass = atom->rmass;
-  const int *mask = atom->mask;
-  const tagint *tag = atom->tag;
-  tagint bad = 0;
-  for (int i = 0; i < atom->nlocal && bad == 0; i++) {
-    if (!(mask[i] & groupbit)) continue;
-    bool ok = std::isfinite(rmass[i]);
-    for (int a = 0; a < 3; a++) ok = ok && std::isfinite(x[i][a]) && std::isfinite(v[i][a]);
-    if (!ok) bad = tag[i];
-  }
-  tagint first = 0;
-  MPI_Allreduce(&bad, &first, 1, MPI_LMP_TAGINT, MPI_MAX, world);
-  if (first != 0)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: atom {} has a non-finite (NaN or inf) position, velocity or "
-                                  "mass at step {} ({}): the DEM run went unstable (check the time step) or the "
-                                  "input set a NaN",
-                                  first, update->ntimestep, when));
-}
-
-template <int D>
-void FixHybridMPM::exchange(bool force_output)
-{
-  check_finite_grains("before the exchange");
-  double **x = atom->x, **v = atom->v;
-  double *rmass = atom->rmass;
-  int *mask = atom->mask;
-  const int nlocal = atom->nlocal;
-
-  // coupled grains: hybrid grains, and any grain of the group inside a hybrid or continuum cell
-  std::vector<int> index;
-  std::vector<double> xs, vs, ms;
-  for (int i = 0; i < nlocal; i++) {
-    if (!(mask[i] & groupbit)) continue;
-    if (weight[i] >= 1.0 && zone_of(x[i]) == coupler::kDiscrete) continue;
-    index.push_back(i);
-    xs.insert(xs.end(), x[i], x[i] + 3);
-    vs.insert(vs.end(), v[i], v[i] + 3);
-    ms.push_back(rmass[i]);
-  }
-  coupler::GrainView view;
-  view.count = index.size();
-  view.x = xs.data();
-  view.v = vs.data();
-  view.mass = ms.data();
-  close_dem_bracket();
-  const auto &nodes = transfer<D>().to_nodes(view);
-  std::vector<coupler::NodeRecord> records(nodes.size());
-  for (std::size_t k = 0; k < nodes.size(); ++k) {
-    records[k].node = nodes[k].node;
-    records[k].mass = nodes[k].mass;
-    for (int a = 0; a < D; ++a) records[k].momentum[a] = nodes[k].momentum[a];
-  }
-  bigint n_coupled_local = static_cast<bigint>(index.size()), n_coupled = 0;
-  MPI_Allreduce(&n_coupled_local, &n_coupled, 1, MPI_LMP_BIGINT, MPI_SUM, world);
-  coupled_grains = n_coupled;
-
-  const bool output_frame =
-      settings->output_every > 0 && (force_output || (exchanges % settings->output_every) == 0);
-  if (output_frame) last_output_step = update->ntimestep;
-  int status = 0;
-  std::string what;
-  coupler::StepAck ack;
-  std::vector<coupler::NodeUpdate> updates;
-  const std::string at_step = " of step " + std::to_string(update->ntimestep);
-  try {
-    if (comm->me == 0) {
-      coupler::StepHeader h = step_header(coupler::kStepCouple);
-      h.output = output_frame ? 1 : 0;
-      h.n_grains = n_coupled;
-      h.next_time = next_exchange_time(force_output);
-      link->send_struct(0, coupler::kTagStep, h, "the step header" + at_step);
-    }
-    link->send_array(0, coupler::kTagNodes, records, "the grain node sums" + at_step);
-    coupler::Message m = link->receive(0, {coupler::kTagNodeReply, coupler::kTagStepAck},
-                                       "the node velocities" + at_step);
-    if (m.tag == coupler::kTagNodeReply) {
-      updates = m.as_array<coupler::NodeUpdate>();
-      if (updates.size() != records.size())
-        throw coupler::PeerError(fmt::format("protocol error: {} node velocities for {} nodes", updates.size(),
-                                             records.size()));
-      apply_updates<D>(view, updates, index);
-      m = link->receive(0, {coupler::kTagStepAck}, "the acknowledgement" + at_step);
-    }
-    ack = m.as<coupler::StepAck>();
-    if (ack.status != 0)
-      status = 2, what = "the MPM process reported an error at step " + std::to_string(update->ntimestep) + ": " +
-                         coupler::get_text(ack.message);
-    else if (output_frame)
-      send_grains("the grains of the output frame" + at_step);
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  last_step = update->ntimestep;
-  check_all(status, what);
-
-  *last_ack = ack;
-  exchanges++;
-  link->count_exchange();
-}
-
-/* ----------------------------------------------------------------------
-   grain velocity updates from the agreed node velocities (coupler rule)
-------------------------------------------------------------------------- */
-
-template <int D>
-void FixHybridMPM::apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
-                                 const std::vector<int> &index)
-{
-  std::vector<coupler::AgreedNode<D>> agreed(updates.size());
-  for (std::size_t k = 0; k < updates.size(); ++k)
-    for (int a = 0; a < D; ++a) {
-      agreed[k].velocity[a] = updates[k].velocity[a];
-      agreed[k].impulse_per_mass[a] = updates[k].impulse_per_mass[a];
-      agreed[k].support[a] = updates[k].support[a];
-    }
-  std::vector<double> dv(index.size() * D), accel(index.size() * D);
-  transfer<D>().velocity_updates(view, agreed, settings->pic, dv.data(), accel.data());
-  double **v = atom->v;
-  const double *rmass = atom->rmass;
-  for (int i : supported) support[i][0] = support[i][1] = support[i][2] = 0.0;
-  supported.clear();
-  double kicked = 0.0;    // the kinetic energy the agreement adds to the grains (energy ledger)
-  for (std::size_t g = 0; g < index.size(); ++g) {
-    bool any = false;
-    for (int a = 0; a < D; ++a) {
-      const double dva = dv[g * D + a], va = v[index[g]][a];
-      kicked += rmass[index[g]] * (va + 0.5 * dva) * dva;
-      v[index[g]][a] += dva;
-      support[index[g]][a] = accel[g * D + a];
-      any = any || accel[g * D + a] != 0.0;
-    }
-    if (any) supported.push_back(index[g]);
-  }
-  ledger.agreement += kicked;
-  ledger.energy += kicked;
-}
-
-/* ----------------------------------------------------------------------
-   local atoms with a support acceleration, after atoms were reordered
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::collect_supported()
-{
-  supported.clear();
-  for (int i = 0; i < atom->nlocal; i++)
-    if (support[i][0] != 0.0 || support[i][1] != 0.0 || support[i][2] != 0.0) supported.push_back(i);
-}
-
-void FixHybridMPM::setup_post_neighbor()
-{
-  collect_supported();
-}
-
-void FixHybridMPM::post_neighbor()
-{
-  collect_supported();
-}
-
-/* ----------------------------------------------------------------------
-   this rank's grains for an output frame of the MPM process's file
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::send_grains(const std::string &what)
-{
-  const int nlocal = atom->nlocal;
-  std::vector<coupler::GrainRecord> grains(nlocal);
-  for (int i = 0; i < nlocal; i++) {
-    auto &g = grains[i];
-    g.id = atom->tag[i];
-    for (int a = 0; a < 3; a++) g.x[a] = atom->x[i][a], g.v[a] = atom->v[i][a];
-    g.radius = atom->radius[i];
-    g.mass = atom->rmass[i];
-    g.weight = weight[i];
-    g.zone = zone_of(atom->x[i]);
-  }
-  link->send_array(0, coupler::kTagGrains, grains, what);
-}
-
-/* ----------------------------------------------------------------------
-   collective outcome of an exchange: any rank's failure stops all ranks
-   with the message of the lowest failing rank
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::check_all(int status, const std::string &what)
-{
-  int worst = 0;
-  MPI_Allreduce(&status, &worst, 1, MPI_INT, MPI_MAX, world);
-  if (worst == 0) return;
-  int mine = status != 0 ? comm->me : comm->nprocs, first = 0;
-  MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, world);
-  char text[coupler::kTextSize * 2] = {};
-  if (comm->me == first) coupler::set_text(text, what);
-  MPI_Bcast(text, sizeof(text), MPI_CHAR, first, world);
-  int first_status = status;
-  MPI_Bcast(&first_status, 1, MPI_INT, first, world);
-  fail(FLERR, first_status, text);
-}
-/* ---------------------------------------------------------------------- */
-
-void FixHybridMPM::fail(const char *file, int line, int status, const char *what)
-{
-  // a peer that did not answer is presumed hung: the finalize hook aborts the job
-  if (status == 1) link->mark_unresponsive();
-  else link->mark(coupler::Link::State::kConnected);
-  error->all(file, line, fmt::format("Fix hybrid/mpm: {}", what));
 }
 
 /* ---------------------------------------------------------------------- */
@@ -1730,11 +357,12 @@ void FixHybridMPM::fail(const char *file, int line, int status, const char *what
 void FixHybridMPM::post_run()
 {
   // the state at the end of every run is in the output file (an exchange at this step)
-  if (link && settings->output_every > 0 && last_output_step != update->ntimestep) {
+  if (link && opt->continuum.output_every > 0 && last_output_step != update->ntimestep) {
     if (domain->dimension == 2) exchange<2>(true);
     else exchange<3>(true);
   }
   last_step = update->ntimestep;
+  log_rezone_summary(true);
   if (comm->me == 0 && link)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} exchange(s) with the MPM process so far\n", exchanges));
 }
@@ -1758,99 +386,15 @@ double FixHybridMPM::compute_vector(int n)
   return vector_cache[n];
 }
 
-void FixHybridMPM::grain_totals(double *all) const
-{
-  // mass, linear momentum, angular momentum about the origin (orbital and spin) of the group's
-  // grains (not of frozen floors or driven bodies outside it, whose momentum others impose)
-  double local[7] = {0, 0, 0, 0, 0, 0, 0};
-  double **x = atom->x, **v = atom->v, **omega = atom->omega;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double m = atom->rmass[i];
-    local[0] += m;
-    for (int a = 0; a < 3; a++) local[1 + a] += m * v[i][a];
-    const double I = inertia * m * atom->radius[i] * atom->radius[i];
-    local[4] += m * (x[i][1] * v[i][2] - x[i][2] * v[i][1]) + I * omega[i][0];
-    local[5] += m * (x[i][2] * v[i][0] - x[i][0] * v[i][2]) + I * omega[i][1];
-    local[6] += m * (x[i][0] * v[i][1] - x[i][1] * v[i][0]) + I * omega[i][2];
-  }
-  MPI_Allreduce(local, all, 7, MPI_DOUBLE, MPI_SUM, world);
-}
-
 void FixHybridMPM::fill_thermo_vector()
 {
-  double all[7];
-  grain_totals(all);
-  const coupler::StepAck &a = *last_ack;
-  double *out = vector_cache;
-  out[kVecExchanges] = static_cast<double>(exchanges + restart_exchanges);
-  out[kVecCoupledGrains] = static_cast<double>(coupled_grains);
-  out[kVecPoints] = static_cast<double>(a.points);
-  out[kVecSharedNodes] = static_cast<double>(a.shared_nodes);
-  out[kVecMismatch] = a.mismatch;
-  out[kVecSubsteps] = a.substeps;
-  out[kVecMpmDt] = a.mpm_dt;
-  out[kVecMass] = all[0] + a.mass;
-  for (int d = 0; d < 3; d++) {
-    out[kVecPx + d] = all[1 + d] + a.momentum[d];
-    out[kVecLx + d] = all[4 + d] + a.angular[d];
-  }
-  out[kVecContinuumKE] = a.kinetic_energy;
-  out[kVecContinuumCells] = static_cast<double>(a.zone_cells[coupler::kContinuum]);
-  out[kVecHybridCells] = static_cast<double>(a.zone_cells[coupler::kHybrid]);
-  out[kVecDiscreteCells] = static_cast<double>(a.zone_cells[coupler::kDiscrete]);
-
-  const double local[6] = {ledger.start, ledger.energy, ledger.dem, ledger.agreement, ledger.support, ledger.rezone};
-  double sum[6];
-  MPI_Allreduce(local, sum, 6, MPI_DOUBLE, MPI_SUM, world);
-  out[kVecEnergyGrains] = sum[1];
-  out[kVecEnergyContinuum] = a.energy;
-  out[kVecEnergy] = sum[1] + a.energy;
-  out[kVecEnergyDem] = sum[2];
-  out[kVecEnergyContinuumSteps] = a.energy_physics;
-  out[kVecEnergyAgreementGrains] = sum[3];
-  out[kVecEnergyAgreementContinuum] = a.energy_agreement;
-  out[kVecEnergySupport] = sum[4];
-  out[kVecEnergyRezoneGrains] = sum[5];
-  out[kVecEnergyRezoneContinuum] = a.energy_rezone;
-  double changes = 0.0;
-  for (int k = kVecEnergyDem; k <= kVecEnergyRezoneContinuum; k++) changes += out[k];
-  out[kVecEnergyResidual] = out[kVecEnergy] - (sum[0] + continuum_start) - changes;
+  double totals[7], local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
+  grain_totals(totals);
+  ledger->sums(local);
+  MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
+  coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start,
+                         vector_cache);
   vector_step = update->ntimestep;
-}
-
-/* ----------------------------------------------------------------------
-   energy ledger: the grains' kinetic (translation and rotation) and
-   potential energy, and the bracket of LAMMPS's own steps, closed at every
-   exchange and rezone (the support force's kicks in it are measured apart)
-------------------------------------------------------------------------- */
-
-double FixHybridMPM::grain_energy() const
-{
-  const double *g = settings->gravity;
-  double **x = atom->x, **v = atom->v, **omega = atom->omega;
-  double energy = 0.0;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double m = atom->rmass[i], I = inertia * m * atom->radius[i] * atom->radius[i];
-    double kinetic = 0.0, spin = 0.0, height = 0.0;
-    for (int a = 0; a < 3; a++) {
-      kinetic += v[i][a] * v[i][a];
-      spin += omega[i][a] * omega[i][a];
-      height += g[a] * x[i][a];
-    }
-    energy += 0.5 * m * kinetic + 0.5 * I * spin - m * height;
-  }
-  return energy;
-}
-
-void FixHybridMPM::close_dem_bracket()
-{
-  const double now = grain_energy();
-  ledger.dem += now - ledger.energy - ledger.support_open;
-  ledger.support += ledger.support_open;
-  ledger.support_open = 0.0;
-  ledger.energy = now;
 }
 
 /* ---------------------------------------------------------------------- */
@@ -1858,178 +402,6 @@ void FixHybridMPM::close_dem_bracket()
 double FixHybridMPM::memory_usage()
 {
   return static_cast<double>(sizeof(*this)) + atom->nmax * kPerAtomValues * sizeof(double) + zones.size();
-}
-
-/* ----------------------------------------------------------------------
-   restart: settings, exchange count and whether the conversion happened
-   (the MPM state itself is not saved yet)
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::write_restart(FILE *fp)
-{
-  double list[6];
-  int n = 0;
-  list[n++] = cell;
-  list[n++] = static_cast<double>(exchanges + restart_exchanges);
-  list[n++] = static_cast<double>(every);
-  list[n++] = converted ? 1.0 : 0.0;
-  list[n++] = dem_time();
-  list[n++] = static_cast<double>(update->ntimestep);
-  if (comm->me == 0) {
-    int size = n * sizeof(double);
-    fwrite(&size, sizeof(int), 1, fp);
-    fwrite(list, sizeof(double), n, fp);
-  }
-}
-
-/* ---------------------------------------------------------------------- */
-
-void FixHybridMPM::restart(char *buf)
-{
-  double *list = (double *) buf;
-  if (list[0] != cell && comm->me == 0)
-    error->warning(FLERR, fmt::format("Fix hybrid/mpm: restart file has cell {}, the input says {}; using {}",
-                                      list[0], cell, cell));
-  restart_exchanges = static_cast<bigint>(list[1]);
-  clock_time = list[4];
-  clock_step = static_cast<bigint>(list[5]);
-  clock_dt = update->dt;
-  if (list[3] != 0.0) {
-    // grains already became points: the MPM process continues from the state saved with the file
-    converted = true;
-    restored = true;
-    if (mpm_state_path.empty())
-      error->all(FLERR, "Fix hybrid/mpm: the restart file was written after grains became material points; "
-                        "add the keyword 'mpm_state FILE' with the MPM state written next to it "
-                        "(<restart file>.mpm.h5)");
-  }
-}
-
-/* ----------------------------------------------------------------------
-   the MPM process writes its state next to every LAMMPS restart file
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::write_restart_file(const char *file)
-{
-  if (!link || !converted) return;
-  state_request(coupler::kStepSave, std::string(file) + ".mpm.h5");
-}
-
-void FixHybridMPM::load_mpm_state()
-{
-  state_request(coupler::kStepLoad, mpm_state_path);
-  state_loaded = true;
-}
-
-void FixHybridMPM::state_request(int kind, const std::string &path)
-{
-  int status = 0;
-  std::string what;
-  coupler::StepAck ack;
-  const char *verb = kind == coupler::kStepSave ? "saving" : "loading";
-  try {
-    if (comm->me == 0) {
-      coupler::StepHeader h = step_header(kind);
-      coupler::StateRequest request;
-      if (path.size() >= sizeof(request.path))
-        throw coupler::PeerError(fmt::format("the MPM state path {} is too long", path));
-      coupler::set_text(request.path, path);
-      request.exchanges = exchanges + restart_exchanges;
-      link->send_struct(0, coupler::kTagStep, h, "the state request header");
-      link->send_struct(0, coupler::kTagState, request, "the state request");
-    }
-    coupler::Message m = link->receive(0, {coupler::kTagStepAck, coupler::kTagZones},
-                                       fmt::format("the MPM process {} its state", verb));
-    if (m.tag == coupler::kTagZones) {    // a loaded state's zones come first
-      auto loaded = m.as_array<signed char>();
-      if (loaded.size() != zones.size())
-        throw coupler::PeerError(fmt::format("protocol error: a zone map of {} cells for a grid of {}",
-                                             loaded.size(), zones.size()));
-      zones = std::move(loaded);
-      m = link->receive(0, {coupler::kTagStepAck}, fmt::format("the MPM process {} its state", verb));
-    }
-    ack = m.as<coupler::StepAck>();
-    if (ack.status != 0) status = 2, what = fmt::format("{} the MPM state failed: {}", verb,
-                                                         coupler::get_text(ack.message));
-  } catch (const coupler::PeerError &e) {
-    status = 1;
-    what = e.what();
-  }
-  check_all(status, what);
-  *last_ack = ack;
-  if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: MPM state {} {} ({} material points)\n",
-                                    kind == coupler::kStepSave ? "saved to" : "loaded from", path, ack.points));
-}
-
-/* ----------------------------------------------------------------------
-   per-atom weight, support and stored stress: allocate, copy, exchange
-   with atoms; restart files hold weight and support only (a rezone left
-   pending at the end of a run is dropped, see setup)
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::grow_arrays(int nmax)
-{
-  memory->grow(weight, nmax, "hybrid/mpm:weight");
-  memory->grow(support, nmax, 3, "hybrid/mpm:support");
-  memory->grow(atom_stress, nmax, 6, "hybrid/mpm:atom_stress");
-}
-
-void FixHybridMPM::copy_arrays(int i, int j, int /*delflag*/)
-{
-  weight[j] = weight[i];
-  for (int a = 0; a < 3; a++) support[j][a] = support[i][a];
-  for (int k = 0; k < 6; k++) atom_stress[j][k] = atom_stress[i][k];
-}
-
-void FixHybridMPM::set_arrays(int i)
-{
-  weight[i] = 1.0;
-  support[i][0] = support[i][1] = support[i][2] = 0.0;
-  for (int k = 0; k < 6; k++) atom_stress[i][k] = 0.0;    // made after the stress was stored: none
-}
-
-int FixHybridMPM::pack_exchange(int i, double *buf)
-{
-  buf[0] = weight[i];
-  for (int a = 0; a < 3; a++) buf[1 + a] = support[i][a];
-  for (int k = 0; k < 6; k++) buf[4 + k] = atom_stress[i][k];
-  return kPerAtomValues;
-}
-
-int FixHybridMPM::unpack_exchange(int nlocal, double *buf)
-{
-  weight[nlocal] = buf[0];
-  for (int a = 0; a < 3; a++) support[nlocal][a] = buf[1 + a];
-  for (int k = 0; k < 6; k++) atom_stress[nlocal][k] = buf[4 + k];
-  return kPerAtomValues;
-}
-
-int FixHybridMPM::pack_restart(int i, double *buf)
-{
-  buf[0] = 5;    // values for this fix, count included (LAMMPS convention)
-  buf[1] = weight[i];
-  for (int a = 0; a < 3; a++) buf[2 + a] = support[i][a];
-  return 5;
-}
-
-void FixHybridMPM::unpack_restart(int nlocal, int nth)
-{
-  double **extra = atom->extra;
-  int m = 0;
-  for (int i = 0; i < nth; i++) m += static_cast<int>(extra[nlocal][m]);
-  weight[nlocal] = extra[nlocal][m + 1];
-  for (int a = 0; a < 3; a++) support[nlocal][a] = extra[nlocal][m + 2 + a];
-}
-
-int FixHybridMPM::size_restart(int /*nlocal*/)
-{
-  return 5;
-}
-
-int FixHybridMPM::maxsize_restart()
-{
-  return 5;
 }
 
 /* ---------------------------------------------------------------------- */

@@ -24,6 +24,9 @@ FixStyle(hybrid/mpm,FixHybridMPM);
 
 namespace coupler {
 class Link;
+class DemSession;
+struct StepOutcome;
+struct GrainRecord;
 struct ContinuumSettings;
 struct StepAck;
 struct StepHeader;
@@ -37,8 +40,13 @@ template <int D> struct RezoneCell;
 template <int D> struct BodySums;
 template <int D> struct GrainSums;
 struct CellGrains;
+struct GrainRules;
+struct DemGrains;
+struct EnergyLedger;
 struct OracleSettings;
-struct CalibratedMaterial;
+struct FixOptions;
+struct RezoneReport;
+class RezoneTally;
 }
 
 namespace LAMMPS_NS {
@@ -80,29 +88,12 @@ class FixHybridMPM : public Fix {
   static Fix *creator(LAMMPS *lmp, int narg, char **arg);
 
  private:
-  double cell;            // MPM grid cell size (distance units, m)
-  double reply_timeout;   // s LAMMPS waits for each reply of the MPM process
-  double idle_timeout;    // s the MPM process waits for the next message from LAMMPS
-  int model;              // coupler::ModelId
-  int every;              // exchange every this many steps
-  int hybrid_width;       // cells of hybrid zone inside the continuum regions' border
-  int adapt_every;        // run the zone oracle every this many steps (0 = fixed zones)
-  int grain_type;         // atom type of grains made from points (0 = the group's smallest)
-  int template_seed;      // seed of the packing template new grains are cut from
-  double inertia;         // moment of inertia factor of a grain (I = inertia m r^2)
-  std::vector<std::string> region_ids;     // continuum regions
-  std::vector<std::string> discrete_region_ids;    // regions kept discrete (oracle boundaries)
-  std::string output_path;                 // HDF5 file of grains and points ("" = none)
-  std::unique_ptr<coupler::ContinuumSettings> settings;
-  std::unique_ptr<coupler::OracleSettings> oracle;    // zone oracle of adaptive runs
-  std::unique_ptr<coupler::CalibratedMaterial> material;    // keyword material (null: constants from the fix line)
+  std::unique_ptr<coupler::FixOptions> opt;    // the fix line's keywords (coupler/fix_options.hpp)
   void apply_material();
-  bool diameter_given, density_given;      // mu(I) grain size and density from the fix line
-  bool container_given[6] = {false, false, false, false, false, false};    // xlo xhi ylo yhi zlo zhi
-  double container_value[6] = {0, 0, 0, 0, 0, 0};
   double container_edge(int axis, int side) const;    // the continuum's container (side 0 lo, 1 hi)
 
   std::unique_ptr<coupler::Link> link;    // connection to the MPM process (all ranks)
+  std::unique_ptr<coupler::DemSession> session;    // the messages over it (coupler/dem_session.hpp)
   bigint exchanges;                       // completed step exchanges (all runs)
   bigint restart_exchanges;               // exchanges read from a restart file
   bigint last_step;                       // last step seen (for the finish message)
@@ -112,6 +103,8 @@ class FixHybridMPM : public Fix {
   // a grain's mass at weight 1 from its radius and the grains' density (rezones give every grain
   // of a moving cell its weight times this)
   double solid_mass(double radius) const;
+  coupler::GrainRules grain_rules() const;    // solid density and inertia of the grains
+  coupler::DemGrains grains() const;          // this rank's atoms as the coupler sees them (coupler/dem_grains.hpp)
   double **support;                       // per-atom acceleration from the continuum until the next exchange
   std::vector<int> supported;             // local atoms with a support acceleration (valid until reneighboring)
   std::unique_ptr<coupler::GrainTransfer<2>> transfer2;    // grain <-> node transfers (2D runs)
@@ -124,13 +117,15 @@ class FixHybridMPM : public Fix {
   double polydispersity;                  // of the group's diameters, for the packing template
   std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
   std::unique_ptr<coupler::PackingTemplate<3>> template3;
+  std::unique_ptr<coupler::RezoneTally> interval_rezones;    // since the last thermo output (rank 0 prints)
+  std::unique_ptr<coupler::RezoneTally> run_rezones;         // since the start of the run
+  void set_rezone_log(const std::string &value);
+  void log_rezone(const coupler::RezoneReport &report, int source, const double *before, const double *after);
+  void log_rezone_summary(bool end_of_run);
   bool timestep_checked;                  // the DEM time step was checked (and logged) once
   double fewest_steps_warned;             // steps per contact at the last warning
-  double warn_steps_per_contact;          // warn below this many DEM steps per contact (keyword steps_per_contact)
-  double relax_time;                      // keyword relax (s; < 0: half the stiffest contact's duration)
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
-  std::string mpm_state_path;             // MPM state file to continue from (keyword mpm_state)
   double clock_time;                      // DEM time at clock_step (the coupling's clock)
   bigint clock_step;                      // -1 until the first setup
   double clock_dt;
@@ -147,20 +142,10 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::StepAck> last_ack;
   bigint coupled_grains;
   bigint vector_step;                     // step of the cached thermo vector
-  double vector_cache[29];                // f_ID[1..29], docs/fix_hybrid_mpm.md
+  double vector_cache[29];               // f_ID[1..29], docs/fix_hybrid_mpm.md (coupler::ThermoEntry)
 
-  // The grains' side of the energy ledger (docs/fix_hybrid_mpm.md, "Energy ledger"): brackets
-  // that follow each other without a gap, each closed at an exchange or a rezone. Sums over
-  // this rank's grains; only their sum over the ranks means anything (atoms change ranks).
-  struct EnergyLedger {
-    double start = 0;        // the grains' energy when the ledger started
-    double energy = 0;       // their energy when the last bracket closed
-    double dem = 0;          // LAMMPS's own steps: contacts, walls, grains leaving
-    double agreement = 0;    // the velocity agreements' updates of the grains
-    double support = 0;      // the support force's kicks
-    double support_open = 0; // those kicks since the last bracket closed
-    double rezone = 0;       // grains deleted, made and corrected by rezones
-  } ledger;
+  // the grains' side of the energy ledger (coupler/dem_ledger.hpp), this rank's grains
+  std::unique_ptr<coupler::EnergyLedger> ledger;
   bool ledger_started;
   double continuum_start;                 // the continuum's energy when the ledger started
   double grain_energy() const;            // kinetic (with rotation) + potential, this rank's grains
@@ -168,14 +153,10 @@ class FixHybridMPM : public Fix {
 
   void connect();
   template <int D> void rezone(int source);
-  template <int D> std::vector<coupler::CellGrains> cell_grains();
   template <int D> bigint make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
                                       std::map<std::size_t, coupler::GrainSums<D>> &sums);
-  template <int D> void sum_over_ranks(std::vector<coupler::BodySums<D>> &sums);
   template <int D> const coupler::PackingTemplate<D> &packing_template();
   void schedule_rezone(int source);
-  bool set_oracle_keyword(const std::string &key, const std::string &val);
-  void check_oracle();
   double dem_steps_per_contact(std::string &why);
   void check_dem_timestep(const std::string &when);
   void store_atom_stress();
@@ -186,10 +167,10 @@ class FixHybridMPM : public Fix {
   void apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
                      const std::vector<int> &index);
   void collect_supported();
-  void send_grains(const std::string &what);
+  std::vector<coupler::GrainRecord> frame_grains() const;    // this rank's grains for an output frame
   void load_mpm_state();
   void state_request(int kind, const std::string &path);
-  void check_all(int status, const std::string &what);
+  void check(const coupler::StepOutcome &mine);    // every rank's outcome; an error if any rank failed
   void compute_zones();
   int zone_of(const double *x) const;
   double dem_time() const;
@@ -204,7 +185,6 @@ class FixHybridMPM : public Fix {
   void grain_defaults();
   void fill_thermo_vector();
   void grain_totals(double *all) const;
-  void fail(const char *file, int line, int status, const char *what);
   [[noreturn]] void illegal(const std::string &why);
 };
 

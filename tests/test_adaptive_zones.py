@@ -24,6 +24,36 @@ REZONE = re.compile(r"step (\d+): (\d+) grains became (\d+) material points, (\d
 TOTALS = re.compile(r"step (\d+): totals before/after the rezone:((?: \S+){14})")
 
 
+LINE = re.compile(r"fix hybrid/mpm: step (\d+): (\d+) grains became (\d+) material points, (\d+) grains are hybrid "
+                  r"\(weight [\d.]+\), (\d+) grains made from points; (\d+) cells moved; grid cells in the box: "
+                  r"(\d+) continuum, (\d+) hybrid, (\d+) discrete; (\d+) cells gave their rest of material to nearby "
+                  r"points, (\d+) kept it; carried mass / solid mass (\S+) to (\S+)")
+SUMMARY = re.compile(r"fix hybrid/mpm: (steps|run of steps) (\d+)-(\d+): (\d+) rezones?: (\d+) grains became (\d+) "
+                     r"material points, (\d+) grains made from points, (\d+) cells moved; (\d+) cells gave their rest "
+                     r"of material to nearby points, (\d+) kept it; now (\d+) hybrid grains, zones (\d+) continuum, "
+                     r"(\d+) hybrid, (\d+) discrete cells; carried mass / solid mass (\S+) to (\S+)")
+# the fields both kinds of line have, in the order of LINE's groups after the step
+SUMMED = ("deleted", "points", "made", "cells", "rests_moved", "rests_kept")
+LAST = ("hybrid", "continuum_cells", "hybrid_cells", "discrete_cells")
+
+
+def rezone_lines(log: str) -> list[dict]:
+    """Every rezone's first line of a full log (keyword rezone_log full), as numbers."""
+    return [dict(step=int(m[1]), deleted=int(m[2]), points=int(m[3]), hybrid=int(m[4]), made=int(m[5]),
+                 cells=int(m[6]), continuum_cells=int(m[7]), hybrid_cells=int(m[8]), discrete_cells=int(m[9]),
+                 rests_moved=int(m[10]), rests_kept=int(m[11]), lightest=float(m[12]), heaviest=float(m[13]))
+            for m in LINE.finditer(log)]
+
+
+def rezone_summaries(log: str) -> list[dict]:
+    """The summary lines of the rezone log: kind 'steps' (since the last thermo output) or 'run of steps'."""
+    return [dict(kind=m[1], first=int(m[2]), last=int(m[3]), rezones=int(m[4]), deleted=int(m[5]),
+                 points=int(m[6]), made=int(m[7]), cells=int(m[8]), rests_moved=int(m[9]), rests_kept=int(m[10]),
+                 hybrid=int(m[11]), continuum_cells=int(m[12]), hybrid_cells=int(m[13]), discrete_cells=int(m[14]),
+                 lightest=float(m[15]), heaviest=float(m[16]))
+            for m in SUMMARY.finditer(log)]
+
+
 def rezones(log: str) -> tuple[list[dict], list[np.ndarray]]:
     """The rezone lines of a LAMMPS log: counts, and totals as 7 x 2 arrays (before, after) of
     mass, momentum x y z, angular momentum x y z."""
@@ -71,6 +101,56 @@ def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid
     assert end["DEM steps"] < 0, end
     assert end["agreement (grains)"] + end["agreement (continuum)"] < 0, end
     assert end["rezones (grains)"] != 0 and end["rezones (continuum)"] != 0, end
+
+
+def test_rezone_log_sums_the_rezones_at_thermo_output(tmp_path, hybrid_programs):
+    """The rezone log (keyword rezone_log) of the 2D patch, 120 steps on 1 rank (oracle every 20
+    steps, thermo every 10). Full: every rezone prints its lines, and at each thermo output that
+    follows rezones a summary adds them up: its counts are the sums of the rezone lines of its
+    steps, its hybrid grains and zones those of the last (and the thermo vector's zones, entries
+    16-18, at its step), its carried-mass extremes those over its rezones; the run's summary
+    covers all of them. The default log of the same run prints the lines of the conversion at
+    step 1 only, and summaries of the same rezones; quiet only the run's summary."""
+    nsteps = 120
+    logs = {}
+    for level in ("full", "summary", "quiet"):
+        (tmp_path / level).mkdir()
+        logs[level] = run_deck(tmp_path / level, DECKS["2d"], 1, "-var", "nsteps", str(nsteps),
+                               "-var", "rezone_log", level)
+    lines, summaries = rezone_lines(logs["full"]), rezone_summaries(logs["full"])
+    oracle_steps = [1] + list(range(21, nsteps, 20))
+    assert [r["step"] for r in lines] == oracle_steps
+    assert len(TOTALS.findall(logs["full"])) == len(lines)
+    intervals = [s for s in summaries if s["kind"] == "steps"]
+    runs = [s for s in summaries if s["kind"] == "run of steps"]
+    assert len(runs) == 1 and (runs[0]["first"], runs[0]["last"]) == (1, nsteps)
+    # one summary per thermo interval (thermo every 10) that holds a rezone
+    assert [(s["first"], s["last"]) for s in intervals] == [(1, 10)] + [(k, k + 9) for k in oracle_steps[1:]]
+    thermo = {int(r["Step"]): r for r in thermo_rows(logs["full"])}
+    for s in intervals + runs:
+        covered = [r for r in lines if s["first"] <= r["step"] <= s["last"]]
+        assert s["rezones"] == len(covered) > 0, s
+        for key in SUMMED:
+            assert s[key] == sum(r[key] for r in covered), (key, s)
+        for key in LAST:
+            assert s[key] == covered[-1][key], (key, s)
+        assert s["lightest"] == min(r["lightest"] for r in covered)
+        assert s["heaviest"] == max(r["heaviest"] for r in covered)
+        row = thermo[s["last"]]
+        assert (row["f_couple[16]"], row["f_couple[17]"], row["f_couple[18]"]) == \
+            (s["continuum_cells"], s["hybrid_cells"], s["discrete_cells"]), s
+    assert sum(s["rezones"] for s in intervals) == runs[0]["rezones"] == len(oracle_steps)
+    assert any(s["made"] > 0 for s in intervals) and any(s["deleted"] > 0 for s in intervals[1:])
+
+    # the default: the conversion's two lines, then only summaries, of the same rezones
+    default = logs["summary"]
+    assert [r["step"] for r in rezone_lines(default)] == [1]
+    assert [m[0] for m in TOTALS.findall(default)] == ["1"]
+    counted = [(s["kind"], s["first"], s["last"], s["rezones"]) for s in rezone_summaries(default)]
+    assert counted == [(s["kind"], s["first"], s["last"], s["rezones"]) for s in summaries]
+    # quiet: the run's summary only
+    assert rezone_lines(logs["quiet"]) == [] and TOTALS.findall(logs["quiet"]) == []
+    assert [(s["kind"], s["rezones"]) for s in rezone_summaries(logs["quiet"])] == [("run of steps", len(oracle_steps))]
 
 
 def assert_ledger_closes(rows: list[dict]) -> dict:
@@ -171,7 +251,7 @@ def test_discrete_zone_follows_the_free_surface_of_a_collapsing_column(tmp_path,
     width, d = 0.05, 0.002
     dx = width / 10
     res = run(aspect=2.0, width=width, d=d, np_=2, out=tmp_path / "hybrid", extra_vars={"mu": 0.5, "e": 0.5},
-              hybrid_vars={"hybrid": 2, "hdepth": 2 * dx, "houtev": 200}, timeout=1200)
+              hybrid_vars={"hybrid": 2, "hdepth": 2 * dx, "houtev": 200, "hlog": "full"}, timeout=1200)
     print(res.summary())
     log = (tmp_path / "hybrid" / "log.lammps").read_text()
     zones = [tuple(map(int, m)) for m in

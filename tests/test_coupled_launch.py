@@ -142,6 +142,7 @@ def test_launcher_composes_both_routes(tmp_path, hybrid_programs, hybrid_plugin)
                                                   "faces)"),
     ("cell 0.01 adaptive 10 touch", "keyword 'touch' needs a value"),
     ("cell 0.01 touch ylo", "keyword 'touch' needs adaptive zones (keyword 'adaptive')"),
+    ("cell 0.01 rezone_log verbose", "keyword 'rezone_log' must be full, summary or quiet, not 'verbose'"),
 ])
 def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_programs, fix_args, message):
     deck = deck_copy(tmp_path, lambda t: replace_fix_line(t, fix_args))

@@ -64,7 +64,9 @@ BEVERLOO_FACTOR = 1.6    # the rate within a factor 1.6 of the 3D Beverloo law (
 HALVES_SPREAD = 0.15     # the two halves of the steady window agree within 15 %
 FIT_RESIDUAL = 0.02      # rms residual of the linear fit below 2 % of the window's discharged mass
 HYBRID_TOLERANCE = 0.15  # |W_hybrid / W_lammps - 1| from the same packing
-HYBRID_VARS: dict = {}  # hybrid_3d.lmp's defaults: cell 2 d, depth 2 cells, band 1, outlet region up to D, every 20
+# hybrid_3d.lmp's defaults (cell 2 d, depth 2 cells, band 1, outlet region up to D, every 20), with every
+# rezone's line in the log (the test below reads them)
+HYBRID_VARS: dict = {"hlog": "full"}
 
 
 @pytest.fixture(scope="module")

@@ -113,9 +113,10 @@ def silo_pairs(silo, silo_dir, hybrid_programs):
     for seed in SEEDS:
         dem = silo if seed == 12345 else run_dem_silo(np_=2, seed=seed, out=silo_dir / f"dem_{seed}", **common)
         # one orifice width over the orifice discrete (the deck's default, two, leaves this shallow
-        # silo only 4 continuum cells; one leaves 16 away from the side walls, 57 with them touched)
-        hyb = run_dem_silo(np_=2, seed=seed, out=silo_dir / f"hybrid_{seed}", hybrid_vars={"houtlet": ORIFICE},
-                           **common)
+        # silo only 4 continuum cells; one leaves 16 away from the side walls, 57 with them touched);
+        # every rezone's line in the log (the test below reads them)
+        hyb = run_dem_silo(np_=2, seed=seed, out=silo_dir / f"hybrid_{seed}",
+                           hybrid_vars={"houtlet": ORIFICE, "hlog": "full"}, **common)
         print(f"seed {seed}:\n{hyb.summary()}")
         pairs[seed] = (dem, hyb, (silo_dir / f"hybrid_{seed}" / "log.lammps").read_text())
     return pairs

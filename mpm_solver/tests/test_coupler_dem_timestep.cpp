@@ -71,3 +71,35 @@ TEST(DemTimestep, AllowedStepsResolveTheContactAndTooLongOnesDoNot) {
 }
 
 }    // namespace
+
+// The check's words, as the fix logs them and tests/test_coupled_launch.py reads them
+TEST(DemStepCheck, NamesTheContactTheStepsAndTheSafeStep) {
+  coupler::HookeanContact c;
+  c.kn = 1000, c.kt = 0, c.gamman = 500, c.inertia = 0.4;
+  const double m = 2500 * 4.0 / 3.0 * M_PI * 1e-9;    // 2 mm grains of 2500 kg/m^3
+  c.m_eff = 0.5 * m;
+  const auto fine = coupler::check_dem_step("gran/hooke/history", c, m, false, 1e-5);
+  EXPECT_NEAR(fine.steps, fine.tc / 1e-5, 1e-9);
+  EXPECT_FALSE(fine.unstable());
+  EXPECT_EQ(fine.what.rfind("the stiffest contact (pair style gran/hooke/history: kn = 1000 N/m, kt = 0 N/m, "
+                            "gamma_n = 500 1/s; lightest grains 1.0472e-05 kg) lasts tc = ",
+                            0),
+            0u)
+      << fine.what;
+  EXPECT_EQ(fine.log_line(1e-5).rfind("fix hybrid/mpm: DEM time step 1e-05 s: the stiffest contact", 0), 0u);
+  const auto coarse = coupler::check_dem_step("gran/hooke", c, m, true, 2e-4);
+  EXPECT_TRUE(coarse.unstable());
+  EXPECT_NE(coarse.what.find("kg, at their share in hybrid cells) lasts"), std::string::npos);
+  const std::string why = coarse.why(10);
+  EXPECT_NE(why.find("steps per contact (fewer than pi/2) make velocity Verlet unstable. Use timestep "),
+            std::string::npos)
+      << why;
+  EXPECT_NE(why.find(" (tc/20) or less"), std::string::npos) << why;
+  const auto poor = coupler::check_dem_step("gran/hooke", c, m, false, 5e-5);
+  EXPECT_NE(poor.why(12.5).find("(fewer than 12.5) resolve it poorly (a collision's energy balance drifts; keyword "
+                                "steps_per_contact sets this threshold)"),
+            std::string::npos);
+  EXPECT_EQ(coupler::unchecked_pair_style("gran/hertz/history"),
+            "Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and gran/hooke/history only; check it "
+            "yourself for pair style gran/hertz/history (at least 20 steps per contact)");
+}

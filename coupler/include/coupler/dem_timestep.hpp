@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 
 namespace coupler {
 
@@ -40,5 +41,29 @@ inline double contact_time(const HookeanContact &c)
   if (!(omega2 > 0)) return std::numeric_limits<double>::infinity();
   return M_PI / std::sqrt(omega2);
 }
+
+/// The DEM step checked against the stiffest contact of a run: the contact time of the two
+/// lightest grains (at their share `weight` of their mass where the coupling splits grains),
+/// the steps per contact, and the words of the fix's log line, warning and error.
+struct DemStepCheck {
+  double tc = 0;        ///< contact time of the stiffest pair, s
+  double steps = 0;     ///< DEM steps per contact, tc / dt
+  std::string what;     ///< "the stiffest contact (pair style ...) lasts tc = ... s"
+  bool unstable() const { return steps < kUnstableStepsPerContact; }
+  /// "fix hybrid/mpm: DEM time step <dt> s: <what>, <steps> steps per contact" (the first check's log line)
+  std::string log_line(double dt) const;
+  /// Why the step is unstable or poor, and the step to use ("<what>, and N steps per contact
+  /// (fewer than ...) ... Use timestep ... (tc/20) or less"); warn_below: keyword steps_per_contact.
+  std::string why(double warn_below) const;
+};
+
+/// The check of a Hookean pair style `pair_style` whose constants `contact` has (its m_eff and
+/// inertia set from the lightest grains, `lightest` kg), at DEM step dt; `split`: the lightest
+/// grains count at their share in hybrid cells.
+DemStepCheck check_dem_step(const std::string &pair_style, const HookeanContact &contact, double lightest, bool split,
+                            double dt);
+
+/// The warning for a pair style the check does not know.
+std::string unchecked_pair_style(const std::string &pair_style);
 
 }    // namespace coupler

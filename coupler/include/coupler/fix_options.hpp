@@ -1,0 +1,82 @@
+#pragma once
+// The options of the DEM side's fix (LAMMPS's fix hybrid/mpm; docs/fix_hybrid_mpm.md,
+// "Syntax"): its keyword table, their defaults and every check of their values. Host-neutral:
+// a host's fix hands its keyword/value words to parse_fix_options and turns an OptionError
+// into its own input error ("Illegal fix hybrid/mpm command: " + what()).
+
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "coupler/dem_timestep.hpp"
+#include "coupler/material_file.hpp"
+#include "coupler/protocol.hpp"
+#include "coupler/rezone_log.hpp"
+
+namespace coupler {
+
+/// A bad fix line: what() names the keyword and the value it needs.
+struct OptionError : std::invalid_argument {
+  using std::invalid_argument::invalid_argument;
+};
+
+/// Every keyword's value, at its default unless the fix line gave it.
+struct FixOptions {
+  double cell = -1.0;             ///< MPM grid cell size, m (required)
+  double reply_timeout = 30.0;    ///< s the DEM side waits for each reply of the MPM process
+  double idle_timeout = 600.0;    ///< s the MPM process waits for the next message (0 = forever)
+  int model = kModelDruckerPrager;
+  int every = 1;                  ///< exchange every this many steps
+  int hybrid_width = 2;           ///< cells of hybrid zone inside the continuum regions' border
+  int adapt_every = 0;            ///< the zone oracle every this many steps (0 = fixed zones)
+  int grain_type = 0;             ///< atom type of grains made from points (0 = the group's smallest)
+  int template_seed = 12345;      ///< seed of the packing template new grains are cut from
+  double inertia = -1.0;          ///< I = inertia m r^2 (after parsing: 0.5 in 2D, 0.4 in 3D unless given)
+  std::vector<std::string> continuum_regions;    ///< keyword continuum (repeatable)
+  std::vector<std::string> discrete_regions;     ///< keyword discrete (repeatable, adaptive only)
+  std::string output_path;                       ///< HDF5 file of grains and points ("" = none)
+  std::string mpm_state_path;                    ///< MPM state to continue from (keyword mpm_state)
+  ContinuumSettings continuum;                   ///< what the handshake sends (gravity etc. set later)
+  OracleSettings oracle;                         ///< the zone oracle of adaptive runs
+  std::optional<CalibratedMaterial> material;    ///< keyword material (none: constants from the line)
+  bool diameter_given = false, density_given = false;    ///< mu(I) grain size and density given
+  bool pic_given = false;
+  bool container_given[6] = {false, false, false, false, false, false};    ///< xlo xhi ylo yhi zlo zhi
+  double container_value[6] = {0, 0, 0, 0, 0, 0};
+  double warn_steps_per_contact = kWarnStepsPerContact;    ///< keyword steps_per_contact
+  double relax_time = -1.0;       ///< keyword relax, s (< 0: half the stiffest contact's duration)
+  RezoneLog rezone_log = RezoneLog::kSummary;
+
+  bool adaptive() const { return adapt_every > 0; }
+  /// Whether the coupling splits grains (continuum regions or adaptive zones).
+  bool splits() const { return !continuum_regions.empty() || adaptive(); }
+  /// The continuum's container face (side 0 lo, 1 hi) on an axis: the keyword's, else the box's.
+  double container_edge(int axis, int side, const double box_lo[3], const double box_hi[3]) const {
+    const int k = 2 * axis + side;
+    return container_given[k] ? container_value[k] : side ? box_hi[axis] : box_lo[axis];
+  }
+};
+
+/// Names of the container faces in the order of face_bit (the values of `touch`).
+inline constexpr const char *kFaceNames[6] = {"xlo", "xhi", "ylo", "yhi", "zlo", "zhi"};
+
+/// The fix line's keyword/value words (after "fix ID group hybrid/mpm") in a run of
+/// `dimension` with `ntypes` atom types; region_exists(id) says whether the host has a region.
+/// Throws OptionError for the first problem, in the order the fix line is read.
+FixOptions parse_fix_options(const std::vector<std::string> &words, int dimension, int ntypes,
+                             const std::function<bool(const std::string &)> &region_exists);
+
+/// The zone oracle's keywords (depth, band, surface_packing, dilute, shear_rate), also
+/// changeable between runs: false if key is none of them, OptionError for a bad value.
+bool set_oracle_option(OracleSettings &oracle, const std::string &key, const std::string &value);
+
+/// The oracle's defaults from the cell (depth 3 cells, band 1) and the checks between its
+/// values; nothing without adaptive zones. Throws OptionError.
+void check_oracle_options(FixOptions &options, int dimension);
+
+/// rezone_log's value (OptionError for another).
+RezoneLog rezone_log_option(const std::string &value);
+
+}    // namespace coupler

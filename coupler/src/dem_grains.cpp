@@ -1,0 +1,78 @@
+#include "coupler/dem_grains.hpp"
+
+#include <algorithm>
+#include <map>
+
+#include "coupler/conversion.hpp"
+#include "coupler/oracle.hpp"
+
+namespace coupler {
+
+double GrainRules::solid_mass(double radius) const {
+  return density * (dimension == 2 ? grain_volume<2>(radius) : grain_volume<3>(radius));
+}
+
+void grain_totals(const DemGrains &g, double inertia, double out[7]) {
+  // of the group's grains only: frozen floors or driven bodies outside it have their momentum imposed
+  std::fill(out, out + 7, 0.0);
+  double **x = g.x, **v = g.v, **omega = g.omega;
+  for (int i = 0; i < g.n; i++) {
+    if (!g.coupled(i)) continue;
+    const double m = g.rmass[i];
+    out[0] += m;
+    for (int a = 0; a < 3; a++) out[1 + a] += m * v[i][a];
+    const double I = inertia * m * g.radius[i] * g.radius[i];
+    out[4] += m * (x[i][1] * v[i][2] - x[i][2] * v[i][1]) + I * omega[i][0];
+    out[5] += m * (x[i][2] * v[i][0] - x[i][0] * v[i][2]) + I * omega[i][1];
+    out[6] += m * (x[i][0] * v[i][1] - x[i][1] * v[i][0]) + I * omega[i][2];
+  }
+}
+
+double grain_energy(const DemGrains &g, double inertia, const double gravity[3]) {
+  double energy = 0.0;
+  for (int i = 0; i < g.n; i++) {
+    if (!g.coupled(i)) continue;
+    const double m = g.rmass[i], I = inertia * m * g.radius[i] * g.radius[i];
+    double kinetic = 0.0, spin = 0.0, height = 0.0;
+    for (int a = 0; a < 3; a++) {
+      kinetic += g.v[i][a] * g.v[i][a];
+      spin += g.omega[i][a] * g.omega[i][a];
+      height += gravity[a] * g.x[i][a];
+    }
+    energy += 0.5 * m * kinetic + 0.5 * I * spin - m * height;
+  }
+  return energy;
+}
+
+template <int D>
+std::vector<CellGrains> cell_grains(const GridGeometry<D> &grid, const DemGrains &g) {
+  std::map<std::size_t, CellGrains> cells;
+  for (int i = 0; i < g.n; i++) {
+    if (!g.coupled(i)) continue;
+    const auto c = cell_of<D>(grid, Eigen::Map<const Eigen::Matrix<double, D, 1>>(g.x[i]));
+    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) continue;
+    const std::size_t k = cell_index<D>(grid, c);
+    auto &cell = cells[k];
+    cell.cell = k;
+    cell.volume += grain_volume<D>(g.radius[i]);
+    cell.mass += g.rmass[i];
+  }
+  std::vector<CellGrains> out;
+  out.reserve(cells.size());
+  for (const auto &kv : cells) out.push_back(kv.second);
+  return out;
+}
+
+void mass_drift(const DemGrains &g, const GrainRules &rules, double out[2]) {
+  out[0] = -1.0e20, out[1] = 0.0;    // -lightest, heaviest
+  for (int i = 0; i < g.n; i++) {
+    if (!g.coupled(i)) continue;
+    const double f = g.rmass[i] / (g.weight[i] * rules.solid_mass(g.radius[i]));
+    out[0] = std::max(out[0], -f), out[1] = std::max(out[1], f);
+  }
+}
+
+template std::vector<CellGrains> cell_grains<2>(const GridGeometry<2> &, const DemGrains &);
+template std::vector<CellGrains> cell_grains<3>(const GridGeometry<3> &, const DemGrains &);
+
+}    // namespace coupler

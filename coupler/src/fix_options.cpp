@@ -1,0 +1,251 @@
+#include "coupler/fix_options.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+#include "coupler/oracle.hpp"
+#include "coupler/text.hpp"
+
+namespace coupler {
+namespace {
+
+const char *const kKeywords =
+    "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
+    "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
+    "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
+    "seed, steps_per_contact, material, relax, rezone_log";
+
+[[noreturn]] void illegal(const std::string &why) { throw OptionError(why); }
+
+// LAMMPS's utils::is_double / is_integer (the characters only) and atof / atoi after them
+bool is_number(const std::string &s, const char *chars) {
+  return !s.empty() && s.find_first_not_of(chars) == std::string::npos;
+}
+
+double number(const std::string &key, const std::string &val) {
+  if (!is_number(val, "0123456789-+.eE")) illegal("keyword '" + key + "' needs a number, not '" + val + "'");
+  return std::atof(val.c_str());
+}
+
+double positive(const std::string &key, const std::string &val, const char *what) {
+  const double v = number(key, val);
+  if (!(v > 0.0)) illegal("keyword '" + key + "' must be > 0 (" + what + "), not " + val);
+  return v;
+}
+
+int integer(const std::string &key, const std::string &val) {
+  if (!is_number(val, "0123456789-+") || std::atoi(val.c_str()) <= 0)
+    illegal("keyword '" + key + "' needs a positive integer, not '" + val + "'");
+  return std::atoi(val.c_str());
+}
+
+// a value in [lo, hi] (closed or open at either end), else the message `range`
+double within(const std::string &key, const std::string &val, bool ok(double), const std::string &message) {
+  const double v = number(key, val);
+  if (!ok(v)) illegal(message + val);
+  return v;
+}
+
+}    // namespace
+
+bool set_oracle_option(OracleSettings &oracle, const std::string &key, const std::string &val) {
+  double *target = nullptr;
+  bool fraction = false;    // a packing fraction in (0, 1); else in (0, inf)
+  const char *what = "";
+  if (key == "depth") target = &oracle.continuum_depth, what = "continuum deeper than depth + band, m";
+  else if (key == "band") target = &oracle.band, what = "half width of the hybrid band, m";
+  else if (key == "surface_packing") target = &oracle.surface_packing, fraction = true, what = "a packing fraction";
+  else if (key == "dilute") target = &oracle.dilute_packing, fraction = true, what = "a packing fraction";
+  else if (key == "shear_rate") target = &oracle.max_shear_rate, what = "cells shearing faster are discrete, 1/s";
+  else return false;
+  const double v = number(key, val);
+  if (!(v > 0.0 && v < (fraction ? 1.0 : 1.0e20)))
+    illegal("keyword '" + key + "' (" + what + ") must be in (0, " + (fraction ? "1" : "inf") + "), not " + val);
+  *target = v;
+  return true;
+}
+
+void check_oracle_options(FixOptions &o, int dimension) {
+  if (!o.adaptive()) return;
+  // Defaults: continuum three cells below surfaces and walls, a hybrid band one cell wide on either side.
+  if (o.oracle.band <= 0.0) o.oracle.band = o.cell;
+  if (o.oracle.continuum_depth <= 0.0) o.oracle.continuum_depth = 3.0 * o.cell;
+  // A continuum cell never borders a discrete one if the band is wider than the distance of
+  // neighbouring cell centres (coupler/oracle.hpp, update_zones)
+  const double closest = 0.5 * std::sqrt(static_cast<double>(dimension)) * o.cell;
+  if (!(o.oracle.band > closest))
+    illegal("keyword 'band' (" + shortest(o.oracle.band) + ") must exceed " + general(closest, 4) + " (sqrt(" +
+            std::to_string(dimension) + ")/2 cells), or continuum cells may border discrete ones");
+  if (!(o.oracle.continuum_depth > o.oracle.band))
+    illegal("keyword 'depth' (" + shortest(o.oracle.continuum_depth) + ") must exceed 'band' (" +
+            shortest(o.oracle.band) + "): the cells at the free surface must stay discrete");
+}
+
+RezoneLog rezone_log_option(const std::string &value) {
+  const auto level = parse_rezone_log(value);
+  if (!level)
+    illegal(std::string("keyword 'rezone_log' must be ") + kRezoneLogValues + ", not '" + value + "'");
+  return *level;
+}
+
+FixOptions parse_fix_options(const std::vector<std::string> &words, int dimension, int ntypes,
+                             const std::function<bool(const std::string &)> &region_exists) {
+  FixOptions o;
+  ContinuumSettings &c = o.continuum;
+  std::vector<std::string> constants_given;    // material constants on the fix line (not with 'material')
+  const std::size_t narg = words.size();
+  std::size_t iarg = 0;
+  while (iarg < narg) {
+    const std::string &key = words[iarg];
+    if (iarg + 2 > narg) illegal("keyword '" + key + "' needs a value");
+    const std::string &val = words[iarg + 1];
+    std::size_t used = 2;
+    if (key == "youngs" || key == "poisson" || key == "friction" || key == "mu_s" || key == "mu_2" || key == "I0" ||
+        key == "critical_packing")
+      constants_given.push_back(key);
+    if (key == "cell") o.cell = positive(key, val, "the MPM grid cell size");
+    else if (key == "material") {
+      try {
+        o.material = read_material_file(find_material_file(val));
+      } catch (const std::exception &e) {
+        illegal(std::string("keyword 'material': ") + e.what());
+      }
+      if (o.material->dimension != dimension)
+        illegal("keyword 'material': " + val + " was calibrated in " + std::to_string(o.material->dimension) +
+                "D, this run is " + std::to_string(dimension) + "D");
+    } else if (key == "continuum") o.continuum_regions.push_back(val);
+    else if (key == "discrete") o.discrete_regions.push_back(val);
+    else if (key == "hybrid_width") o.hybrid_width = integer(key, val);
+    else if (key == "weight")
+      c.grain_weight = within(key, val, [](double v) { return v > 0.0 && v < 1.0; },
+                              "keyword 'weight' (the share of a hybrid cell's mass its grains keep) must be between "
+                              "0 and 1, not ");
+    else if (key == "model") {
+      if (val == "drucker_prager") o.model = kModelDruckerPrager;
+      else if (val == "mu_i") o.model = kModelMuI;
+      else illegal("keyword 'model' must be drucker_prager or mu_i, not '" + val + "'");
+    } else if (key == "youngs") c.youngs_modulus = positive(key, val, "Pa");
+    else if (key == "poisson")
+      c.poisson_ratio = within(key, val, [](double v) { return v > -1.0 && v < 0.5; },
+                               "keyword 'poisson' must be in (-1, 0.5), not ");
+    else if (key == "friction")
+      c.friction_angle_deg = within(key, val, [](double v) { return v >= 0.0 && v < 90.0; },
+                                    "keyword 'friction' (friction angle, degrees) must be in [0, 90), not ");
+    else if (key == "mu_s") c.mu_s = positive(key, val, "static friction of mu(I)");
+    else if (key == "mu_2") c.mu_2 = positive(key, val, "limit friction of mu(I)");
+    else if (key == "I0") c.I0 = positive(key, val, "inertial number scale of mu(I)");
+    else if (key == "diameter") c.grain_diameter = positive(key, val, "grain diameter, m"), o.diameter_given = true;
+    else if (key == "grain_density") c.grain_density = positive(key, val, "kg/m^3"), o.density_given = true;
+    else if (key == "critical_packing")
+      c.critical_packing = within(key, val, [](double v) { return v > 0.0 && v < 1.0; },
+                                  "keyword 'critical_packing' must be in (0, 1), not ");
+    else if (key == "wall") {
+      if (val == "sticky") c.wall_contact = kWallSticky;
+      else if (val == "slip") c.wall_contact = kWallSlip;
+      else if (val == "friction") {
+        if (iarg + 3 > narg) illegal("keyword 'wall friction' needs the friction coefficient");
+        c.wall_contact = kWallFriction;
+        c.wall_friction = number("wall friction", words[iarg + 2]);
+        if (c.wall_friction < 0.0) illegal("keyword 'wall friction' needs a coefficient >= 0");
+        used = 3;
+      } else illegal("keyword 'wall' must be sticky, slip or friction MU, not '" + val + "'");
+    } else if (key == "container") {
+      // xlo xhi ylo yhi (zlo zhi): walls of the continuum; INF = the box face
+      const std::size_t nval = 2 * dimension;
+      if (iarg + 1 + nval > narg)
+        illegal("keyword 'container' needs " + std::to_string(nval) + " values (xlo xhi ylo yhi" +
+                (dimension == 3 ? " zlo zhi" : "") + "; INF = the box face)");
+      for (std::size_t k = 0; k < nval; k++) {
+        const std::string &v = words[iarg + 1 + k];
+        o.container_given[k] = v != "INF" && v != "EDGE";
+        if (o.container_given[k]) o.container_value[k] = number("container", v);
+      }
+      used = 1 + nval;
+    } else if (key == "touch") {
+      // a container face the continuum may reach (its wall law stands for the DEM wall)
+      const int nfaces = 2 * dimension;
+      const int f = static_cast<int>(std::find(kFaceNames, kFaceNames + 6, val) - kFaceNames);
+      if (val == "all")
+        for (int k = 0; k < nfaces; k++) c.touched_faces |= face_bit(k / 2, k % 2);
+      else if (f < nfaces) c.touched_faces |= face_bit(f / 2, f % 2);
+      else if (f < 6) illegal("keyword 'touch' face '" + val + "' needs a 3D box (a 2D box has no z faces)");
+      else
+        illegal(std::string("keyword 'touch' needs a container face (xlo, xhi, ylo, yhi") +
+                (nfaces == 6 ? ", zlo, zhi" : "") + " or all), not '" + val + "'");
+    } else if (key == "cfl")
+      c.cfl = within(key, val, [](double v) { return v > 0.0 && v <= 1.0; }, "keyword 'cfl' must be in (0, 1], not ");
+    else if (key == "pic") {
+      o.pic_given = true;
+      c.pic = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; }, "keyword 'pic' must be in [0, 1], not ");
+    } else if (key == "support")
+      c.support_gain = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; },
+                              "keyword 'support' (gain of the support force between exchanges) must be in [0, 1], "
+                              "not ");
+    else if (key == "points_per_cell") {
+      c.points_per_axis = integer(key, val);
+      if (c.points_per_axis > 4) illegal("keyword 'points_per_cell' (points per cell and axis) must be 1 to 4");
+    } else if (key == "inertia") o.inertia = positive(key, val, "I = inertia m r^2");
+    else if (key == "output") {
+      if (iarg + 3 > narg) illegal("keyword 'output' needs a file name and an interval in exchanges");
+      o.output_path = val;
+      c.output_every = integer("output", words[iarg + 2]);
+      if (o.output_path.size() >= sizeof(c.output_path))
+        illegal("keyword 'output': the file name is longer than " + std::to_string(sizeof(c.output_path) - 1) +
+                " characters");
+      set_text(c.output_path, o.output_path);
+      used = 3;
+    } else if (key == "adaptive") o.adapt_every = integer(key, val);
+    else if (set_oracle_option(o.oracle, key, val)) {
+    } else if (key == "grain_type") o.grain_type = integer(key, val);
+    else if (key == "seed") o.template_seed = integer(key, val);
+    else if (key == "relax")
+      o.relax_time = within(key, val, [](double v) { return v >= 0.0; },
+                            "keyword 'relax' (relaxation time of the velocity agreement, s; 0 = close the gap at "
+                            "every exchange) must be >= 0, not ");
+    else if (key == "steps_per_contact")
+      o.warn_steps_per_contact = within(key, val, [](double v) { return v > kUnstableStepsPerContact; },
+                                        "keyword 'steps_per_contact' (warn below this many DEM steps per contact) "
+                                        "must exceed pi/2, where velocity Verlet goes unstable, not ");
+    else if (key == "rezone_log") o.rezone_log = rezone_log_option(val);
+    else if (key == "mpm_state") o.mpm_state_path = val;
+    else if (key == "every") o.every = integer(key, val);
+    else if (key == "timeout") o.reply_timeout = positive(key, val, "seconds");
+    else if (key == "idle")
+      o.idle_timeout = within(key, val, [](double v) { return !(v < 0.0); },
+                              "keyword 'idle' must be >= 0 seconds (0 = wait forever), not ");
+    else
+      illegal("unknown keyword '" + key + "' (known keywords: " + kKeywords + ")");
+    iarg += used;
+  }
+  if (o.cell <= 0.0) illegal("keyword 'cell' (the MPM grid cell size) is required");
+  if (o.material && !constants_given.empty())
+    illegal("keyword '" + constants_given.front() + "' conflicts with 'material', which sets the continuum's "
+            "constants from the calibration; leave one out");
+  for (const auto &[kind, ids] : {std::make_pair("continuum", &o.continuum_regions),
+                                  std::make_pair("discrete", &o.discrete_regions)})
+    for (const auto &rid : *ids)
+      if (!region_exists(rid))
+        illegal(std::string(kind) + " region '" + rid + "' does not exist (define it with the region command first)");
+  if (!o.discrete_regions.empty() && !o.adaptive())
+    illegal("keyword 'discrete' needs adaptive zones (keyword 'adaptive'): with fixed zones, leave the region "
+            "out of the continuum regions instead");
+  if (c.touched_faces != 0 && !o.adaptive())
+    illegal("keyword 'touch' needs adaptive zones (keyword 'adaptive'): with fixed zones, the continuum regions "
+            "decide where the continuum is");
+  if (o.inertia < 0.0) o.inertia = dimension == 2 ? 0.5 : 0.4;
+  if (o.adaptive() && o.adapt_every % o.every != 0)
+    illegal("keyword 'adaptive' (" + std::to_string(o.adapt_every) + " steps) must be a multiple of 'every' (" +
+            std::to_string(o.every) + "): zones change right after an exchange");
+  check_oracle_options(o, dimension);
+  // With moving zones the hybrid band lies inside the flow: taking the agreed field there
+  // (pic 1) erases the grains' fluctuations at every exchange and damps the flow (a column
+  // collapse ran out 35 % short); the impulse-only rule of docs/design.md section 5 keeps them.
+  if (o.adaptive() && !o.pic_given) c.pic = 0.0;
+  if (o.grain_type > ntypes)
+    illegal("keyword 'grain_type' " + std::to_string(o.grain_type) + " is not an atom type (1 to " +
+            std::to_string(ntypes) + ")");
+  return o;
+}
+
+}    // namespace coupler

@@ -1,0 +1,387 @@
+/* ----------------------------------------------------------------------
+   fix hybrid/mpm (hybrid-granular project): the coupling exchange (the
+   host's side of coupler/dem_session.hpp), the coupling's clock, restart
+   files and the per-atom arrays that travel with the grains
+------------------------------------------------------------------------- */
+
+#include "fix_hybrid_mpm_impl.h"
+
+#include <cmath>
+
+#include "atom.h"
+#include "comm.h"
+#include "error.h"
+#include "memory.h"
+#include "output.h"
+#include "update.h"
+#include "utils.h"
+
+#include "coupler/dem_grains.hpp"
+#include "coupler/dem_ledger.hpp"
+#include "coupler/dem_session.hpp"
+#include "coupler/fix_options.hpp"
+#include "coupler/zones.hpp"
+
+using namespace LAMMPS_NS;
+using namespace FixConst;
+using namespace LAMMPS_NS::hybrid_mpm;
+
+
+/* ----------------------------------------------------------------------
+   time of the next exchange if it is certain now, else -1: the MPM process
+   then advances to it while LAMMPS computes its steps. Not certain: the run
+   ends first (unless the end-of-run output frame is an exchange), or a
+   restart file is written before it (the MPM state must then be that of
+   this exchange)
+------------------------------------------------------------------------- */
+
+double FixHybridMPM::next_exchange_time(bool force_output) const
+{
+  const bigint now = update->ntimestep, next = now + opt->every;
+  if (force_output) return -1.0;
+  if (opt->adapt_every > 0 && converted && now % opt->adapt_every == 0 && now < update->laststep) return -1.0;    // a rezone
+  if (output->restart_flag && output->next_restart >= now && output->next_restart < next) return -1.0;
+  if (next <= update->laststep) return dem_time(next);
+  if (opt->continuum.output_every > 0 && update->laststep > now) return dem_time(update->laststep);    // end-of-run frame
+  return -1.0;
+}
+
+coupler::StepHeader FixHybridMPM::step_header(int kind) const
+{
+  coupler::StepHeader h;
+  h.step = update->ntimestep;
+  h.time = dem_time();
+  h.dt = update->dt;
+  h.kind = kind;
+  return h;
+}
+
+double FixHybridMPM::dem_time() const
+{
+  return dem_time(update->ntimestep);
+}
+
+// the same expression for every step, so a time announced in advance is the same bits
+// as the time of that step when it comes
+double FixHybridMPM::dem_time(bigint step) const
+{
+  if (clock_step < 0) return update->atime + (step - update->atimestep) * update->dt;
+  return clock_time + (step - clock_step) * clock_dt;
+}
+
+/* ----------------------------------------------------------------------
+   one coupling exchange: coupled grains' weighted mass and momentum per node
+   go to the MPM process, the agreed node velocities come back
+------------------------------------------------------------------------- */
+
+/* ----------------------------------------------------------------------
+   every grain of the group must have a finite position, velocity and mass
+   before it is mapped to grid cells and nodes (a NaN there indexed the grid
+   out of range); collective, an error naming the first bad atom
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::check_finite_grains(const std::string &when)
+{
+  double **x = atom->x, **v = atom->v;
+  const double *rmass = atom->rmass;
+  const int *mask = atom->mask;
+  const tagint *tag = atom->tag;
+  tagint bad = 0;
+  for (int i = 0; i < atom->nlocal && bad == 0; i++) {
+    if (!(mask[i] & groupbit)) continue;
+    bool ok = std::isfinite(rmass[i]);
+    for (int a = 0; a < 3; a++) ok = ok && std::isfinite(x[i][a]) && std::isfinite(v[i][a]);
+    if (!ok) bad = tag[i];
+  }
+  tagint first = 0;
+  MPI_Allreduce(&bad, &first, 1, MPI_LMP_TAGINT, MPI_MAX, world);
+  if (first != 0)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: atom {} has a non-finite (NaN or inf) position, velocity or "
+                                  "mass at step {} ({}): the DEM run went unstable (check the time step) or the "
+                                  "input set a NaN",
+                                  first, update->ntimestep, when));
+}
+
+template <int D>
+void FixHybridMPM::exchange(bool force_output)
+{
+  check_finite_grains("before the exchange");
+  double **x = atom->x, **v = atom->v;
+  double *rmass = atom->rmass;
+
+  // coupled grains: hybrid grains, and any grain of the group inside a hybrid or continuum cell
+  const std::vector<int> index = coupler::coupled_grains(grains(), [&](const double *xi) { return zone_of(xi); });
+  std::vector<double> xs, vs, ms;
+  for (int i : index) {
+    xs.insert(xs.end(), x[i], x[i] + 3);
+    vs.insert(vs.end(), v[i], v[i] + 3);
+    ms.push_back(rmass[i]);
+  }
+  coupler::GrainView view;
+  view.count = index.size();
+  view.x = xs.data();
+  view.v = vs.data();
+  view.mass = ms.data();
+  close_dem_bracket();
+  const auto &nodes = transfer<D>().to_nodes(view);
+  std::vector<coupler::NodeRecord> records(nodes.size());
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    records[k].node = nodes[k].node;
+    records[k].mass = nodes[k].mass;
+    for (int a = 0; a < D; ++a) records[k].momentum[a] = nodes[k].momentum[a];
+  }
+  bigint n_coupled_local = static_cast<bigint>(index.size()), n_coupled = 0;
+  MPI_Allreduce(&n_coupled_local, &n_coupled, 1, MPI_LMP_BIGINT, MPI_SUM, world);
+  coupled_grains = n_coupled;
+
+  const bool output_frame =
+      opt->continuum.output_every > 0 && (force_output || (exchanges % opt->continuum.output_every) == 0);
+  if (output_frame) last_output_step = update->ntimestep;
+  coupler::StepHeader h = step_header(coupler::kStepCouple);
+  h.output = output_frame ? 1 : 0;
+  h.n_grains = n_coupled;
+  h.next_time = next_exchange_time(force_output);
+  coupler::StepAck ack;
+  const coupler::StepOutcome outcome = session->exchange(
+      h, records, [&](const std::vector<coupler::NodeUpdate> &updates) { apply_updates<D>(view, updates, index); },
+      [&] { return frame_grains(); }, ack);
+  last_step = update->ntimestep;
+  check(outcome);
+
+  *last_ack = ack;
+  exchanges++;
+  link->count_exchange();
+}
+
+/* ----------------------------------------------------------------------
+   grain velocity updates from the agreed node velocities (coupler rule)
+------------------------------------------------------------------------- */
+
+template <int D>
+void FixHybridMPM::apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
+                                 const std::vector<int> &index)
+{
+  std::vector<coupler::AgreedNode<D>> agreed(updates.size());
+  for (std::size_t k = 0; k < updates.size(); ++k)
+    for (int a = 0; a < D; ++a) {
+      agreed[k].velocity[a] = updates[k].velocity[a];
+      agreed[k].impulse_per_mass[a] = updates[k].impulse_per_mass[a];
+      agreed[k].support[a] = updates[k].support[a];
+    }
+  std::vector<double> dv(index.size() * D), accel(index.size() * D);
+  transfer<D>().velocity_updates(view, agreed, opt->continuum.pic, dv.data(), accel.data());
+  double **v = atom->v;
+  const double *rmass = atom->rmass;
+  for (int i : supported) support[i][0] = support[i][1] = support[i][2] = 0.0;
+  supported.clear();
+  double kicked = 0.0;    // the kinetic energy the agreement adds to the grains (energy ledger)
+  for (std::size_t g = 0; g < index.size(); ++g) {
+    bool any = false;
+    for (int a = 0; a < D; ++a) {
+      const double dva = dv[g * D + a], va = v[index[g]][a];
+      kicked += rmass[index[g]] * (va + 0.5 * dva) * dva;
+      v[index[g]][a] += dva;
+      support[index[g]][a] = accel[g * D + a];
+      any = any || accel[g * D + a] != 0.0;
+    }
+    if (any) supported.push_back(index[g]);
+  }
+  ledger->add_agreement(kicked);
+}
+
+/* ----------------------------------------------------------------------
+   local atoms with a support acceleration, after atoms were reordered
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::collect_supported()
+{
+  supported.clear();
+  for (int i = 0; i < atom->nlocal; i++)
+    if (support[i][0] != 0.0 || support[i][1] != 0.0 || support[i][2] != 0.0) supported.push_back(i);
+}
+
+void FixHybridMPM::setup_post_neighbor()
+{
+  collect_supported();
+}
+
+void FixHybridMPM::post_neighbor()
+{
+  collect_supported();
+}
+
+/* ----------------------------------------------------------------------
+   this rank's grains for an output frame of the MPM process's file
+------------------------------------------------------------------------- */
+
+std::vector<coupler::GrainRecord> FixHybridMPM::frame_grains() const
+{
+  const int nlocal = atom->nlocal;
+  std::vector<coupler::GrainRecord> grains(nlocal);
+  for (int i = 0; i < nlocal; i++) {
+    auto &g = grains[i];
+    g.id = atom->tag[i];
+    for (int a = 0; a < 3; a++) g.x[a] = atom->x[i][a], g.v[a] = atom->v[i][a];
+    g.radius = atom->radius[i];
+    g.mass = atom->rmass[i];
+    g.weight = weight[i];
+    g.zone = zone_of(atom->x[i]);
+  }
+  return grains;
+}
+
+/* ----------------------------------------------------------------------
+   collective outcome of a step with the MPM process: any rank's failure
+   stops all ranks with the message of the lowest failing rank
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::check(const coupler::StepOutcome &mine)
+{
+  const coupler::StepOutcome all = session->settle(mine);
+  if (!all.ok()) error->all(FLERR, "Fix hybrid/mpm: " + all.what);
+}
+
+/* ----------------------------------------------------------------------
+   restart: settings, exchange count and whether the conversion happened
+   (the MPM state itself is not saved yet)
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::write_restart(FILE *fp)
+{
+  double list[6];
+  int n = 0;
+  list[n++] = opt->cell;
+  list[n++] = static_cast<double>(exchanges + restart_exchanges);
+  list[n++] = static_cast<double>(opt->every);
+  list[n++] = converted ? 1.0 : 0.0;
+  list[n++] = dem_time();
+  list[n++] = static_cast<double>(update->ntimestep);
+  if (comm->me == 0) {
+    int size = n * sizeof(double);
+    fwrite(&size, sizeof(int), 1, fp);
+    fwrite(list, sizeof(double), n, fp);
+  }
+}
+
+/* ---------------------------------------------------------------------- */
+
+void FixHybridMPM::restart(char *buf)
+{
+  double *list = (double *) buf;
+  if (list[0] != opt->cell && comm->me == 0)
+    error->warning(FLERR, fmt::format("Fix hybrid/mpm: restart file has cell {}, the input says {}; using {}",
+                                      list[0], opt->cell, opt->cell));
+  restart_exchanges = static_cast<bigint>(list[1]);
+  clock_time = list[4];
+  clock_step = static_cast<bigint>(list[5]);
+  clock_dt = update->dt;
+  if (list[3] != 0.0) {
+    // grains already became points: the MPM process continues from the state saved with the file
+    converted = true;
+    restored = true;
+    if (opt->mpm_state_path.empty())
+      error->all(FLERR, "Fix hybrid/mpm: the restart file was written after grains became material points; "
+                        "add the keyword 'mpm_state FILE' with the MPM state written next to it "
+                        "(<restart file>.mpm.h5)");
+  }
+}
+
+/* ----------------------------------------------------------------------
+   the MPM process writes its state next to every LAMMPS restart file
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::write_restart_file(const char *file)
+{
+  if (!link || !converted) return;
+  state_request(coupler::kStepSave, std::string(file) + ".mpm.h5");
+}
+
+void FixHybridMPM::load_mpm_state()
+{
+  state_request(coupler::kStepLoad, opt->mpm_state_path);
+  state_loaded = true;
+}
+
+void FixHybridMPM::state_request(int kind, const std::string &path)
+{
+  coupler::StepAck ack;
+  check(session->state_request(step_header(kind), path, exchanges + restart_exchanges, zones, ack));
+  *last_ack = ack;
+  if (comm->me == 0)
+    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: MPM state {} {} ({} material points)\n",
+                                    kind == coupler::kStepSave ? "saved to" : "loaded from", path, ack.points));
+}
+
+/* ----------------------------------------------------------------------
+   per-atom weight, support and stored stress: allocate, copy, exchange
+   with atoms; restart files hold weight and support only (a rezone left
+   pending at the end of a run is dropped, see setup)
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::grow_arrays(int nmax)
+{
+  memory->grow(weight, nmax, "hybrid/mpm:weight");
+  memory->grow(support, nmax, 3, "hybrid/mpm:support");
+  memory->grow(atom_stress, nmax, 6, "hybrid/mpm:atom_stress");
+}
+
+void FixHybridMPM::copy_arrays(int i, int j, int /*delflag*/)
+{
+  weight[j] = weight[i];
+  for (int a = 0; a < 3; a++) support[j][a] = support[i][a];
+  for (int k = 0; k < 6; k++) atom_stress[j][k] = atom_stress[i][k];
+}
+
+void FixHybridMPM::set_arrays(int i)
+{
+  weight[i] = 1.0;
+  support[i][0] = support[i][1] = support[i][2] = 0.0;
+  for (int k = 0; k < 6; k++) atom_stress[i][k] = 0.0;    // made after the stress was stored: none
+}
+
+int FixHybridMPM::pack_exchange(int i, double *buf)
+{
+  buf[0] = weight[i];
+  for (int a = 0; a < 3; a++) buf[1 + a] = support[i][a];
+  for (int k = 0; k < 6; k++) buf[4 + k] = atom_stress[i][k];
+  return kPerAtomValues;
+}
+
+int FixHybridMPM::unpack_exchange(int nlocal, double *buf)
+{
+  weight[nlocal] = buf[0];
+  for (int a = 0; a < 3; a++) support[nlocal][a] = buf[1 + a];
+  for (int k = 0; k < 6; k++) atom_stress[nlocal][k] = buf[4 + k];
+  return kPerAtomValues;
+}
+
+int FixHybridMPM::pack_restart(int i, double *buf)
+{
+  buf[0] = 5;    // values for this fix, count included (LAMMPS convention)
+  buf[1] = weight[i];
+  for (int a = 0; a < 3; a++) buf[2 + a] = support[i][a];
+  return 5;
+}
+
+void FixHybridMPM::unpack_restart(int nlocal, int nth)
+{
+  double **extra = atom->extra;
+  int m = 0;
+  for (int i = 0; i < nth; i++) m += static_cast<int>(extra[nlocal][m]);
+  weight[nlocal] = extra[nlocal][m + 1];
+  for (int a = 0; a < 3; a++) support[nlocal][a] = extra[nlocal][m + 2 + a];
+}
+
+int FixHybridMPM::size_restart(int /*nlocal*/)
+{
+  return 5;
+}
+
+int FixHybridMPM::maxsize_restart()
+{
+  return 5;
+}
+
+// end_of_step and post_run (fix_hybrid_mpm.cpp) exchange in 2D and 3D
+template void FixHybridMPM::exchange<2>(bool);
+template void FixHybridMPM::exchange<3>(bool);

@@ -1,0 +1,61 @@
+// The grains' side of the energy ledger and the fix's global vector (coupler/dem_ledger.hpp):
+// every change of the grains' energy is charged to one bracket, so the residual (entry 29) is
+// zero when the two sides' figures are those of one state, and not when they are not.
+#include <gtest/gtest.h>
+
+#include "coupler/dem_ledger.hpp"
+
+namespace {
+
+TEST(DemLedger, BracketsChargeEveryChangeOnce) {
+  coupler::EnergyLedger l;
+  l.start = l.energy = 10.0;
+  l.support_open += 0.5;         // the support force's kicks during the host's steps
+  l.close_dem_bracket(9.0);      // the grains' energy at the exchange
+  EXPECT_DOUBLE_EQ(l.dem, -1.5);
+  EXPECT_DOUBLE_EQ(l.support, 0.5);
+  EXPECT_DOUBLE_EQ(l.support_open, 0.0);
+  l.add_agreement(-0.25);
+  EXPECT_DOUBLE_EQ(l.energy, 8.75);
+  l.close_rezone(9.75);
+  EXPECT_DOUBLE_EQ(l.rezone, 1.0);
+  EXPECT_DOUBLE_EQ(l.energy, 9.75);
+  // the grains' energy is their start plus what each bracket changed
+  EXPECT_DOUBLE_EQ(l.energy, l.start + l.dem + l.support + l.agreement + l.rezone);
+}
+
+TEST(DemLedger, VectorAddsBothSidesAndItsResidualClosesTheLedger) {
+  coupler::EnergyLedger l;
+  l.start = l.energy = 10.0;
+  l.close_dem_bracket(9.0);
+  l.add_agreement(-0.5);
+  coupler::StepAck a;
+  a.points = 40, a.shared_nodes = 12, a.mismatch = 0.01, a.substeps = 3, a.mpm_dt = 1e-5;
+  a.mass = 2.0, a.momentum[1] = -1.0, a.angular[2] = 0.25, a.kinetic_energy = 0.125;
+  a.zone_cells[coupler::kContinuum] = 5, a.zone_cells[coupler::kHybrid] = 6, a.zone_cells[coupler::kDiscrete] = 7;
+  const double continuum_start = 4.0;
+  a.energy_physics = -0.75, a.energy_agreement = 0.25, a.energy_rezone = 0.0;
+  a.energy = continuum_start + a.energy_physics + a.energy_agreement;
+  const double totals[7] = {1.0, 0.5, 0.5, 0, 0, 0, 0.5};
+  double sums[coupler::EnergyLedger::kSums], v[coupler::kVecSize];
+  l.sums(sums);
+  coupler::thermo_vector(a, 9, 33, totals, sums, continuum_start, v);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecExchanges], 9);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecCoupledGrains], 33);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecPoints], 40);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecMass], 3.0);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecPy], -0.5);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecLz], 0.75);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecContinuumCells], 5);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecDiscreteCells], 7);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyGrains], 8.5);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecEnergy], 8.5 + 3.5);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyResidual], 0.0);
+  // a change no bracket saw shows up in the residual
+  a.energy += 0.125;
+  coupler::thermo_vector(a, 9, 33, totals, sums, continuum_start, v);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyResidual], 0.125);
+  EXPECT_EQ(coupler::kVecSize, 29);    // f_ID[1..29] in docs/fix_hybrid_mpm.md
+}
+
+}    // namespace

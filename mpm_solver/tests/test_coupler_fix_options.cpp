@@ -1,0 +1,161 @@
+// The fix line's options (coupler/fix_options.hpp): defaults, what each keyword sets, and the
+// message of every kind of bad line (the fix prints it after "Illegal fix hybrid/mpm command: ").
+#include <gtest/gtest.h>
+
+#include <sstream>
+
+#include "coupler/fix_options.hpp"
+
+namespace {
+
+std::vector<std::string> words(const std::string &line) {
+  std::istringstream in(line);
+  std::vector<std::string> out;
+  for (std::string w; in >> w;) out.push_back(w);
+  return out;
+}
+
+bool region_known(const std::string &id) { return id == "core" || id == "outlet"; }
+
+coupler::FixOptions parse(const std::string &line, int dimension = 2, int ntypes = 2) {
+  return coupler::parse_fix_options(words(line), dimension, ntypes, region_known);
+}
+
+std::string error_of(const std::string &line, int dimension = 2, int ntypes = 2) {
+  try {
+    parse(line, dimension, ntypes);
+  } catch (const coupler::OptionError &e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(FixOptions, DefaultsAreTheDocumented) {
+  const auto o = parse("cell 0.01");
+  EXPECT_DOUBLE_EQ(o.cell, 0.01);
+  EXPECT_EQ(o.every, 1);
+  EXPECT_EQ(o.hybrid_width, 2);
+  EXPECT_EQ(o.adapt_every, 0);
+  EXPECT_EQ(o.model, coupler::kModelDruckerPrager);
+  EXPECT_EQ(o.template_seed, 12345);
+  EXPECT_DOUBLE_EQ(o.reply_timeout, 30.0);
+  EXPECT_DOUBLE_EQ(o.idle_timeout, 600.0);
+  EXPECT_DOUBLE_EQ(o.inertia, 0.5);    // disks
+  EXPECT_DOUBLE_EQ(parse("cell 0.01", 3).inertia, 0.4);
+  EXPECT_DOUBLE_EQ(o.continuum.grain_weight, 0.5);
+  EXPECT_DOUBLE_EQ(o.continuum.pic, 1.0);
+  EXPECT_EQ(o.continuum.wall_contact, coupler::kWallSlip);
+  EXPECT_EQ(o.rezone_log, coupler::RezoneLog::kSummary);
+  EXPECT_FALSE(o.material);
+  EXPECT_FALSE(o.splits());
+  const double lo[3] = {0, 0, 0}, hi[3] = {1, 2, 3};
+  EXPECT_DOUBLE_EQ(o.container_edge(1, 1, lo, hi), 2.0);
+}
+
+TEST(FixOptions, KeywordsSetTheirValues) {
+  const auto o = parse("cell 0.005 continuum core continuum outlet hybrid_width 1 weight 0.3 model mu_i every 10 "
+                       "wall friction 0.5 container 0 INF 0.1 INF output frames 20 inertia 0.25 rezone_log quiet "
+                       "points_per_cell 3 timeout 5 idle 0 mpm_state s.h5 seed 7 grain_type 2 relax 0");
+  EXPECT_EQ(o.continuum_regions, (std::vector<std::string>{"core", "outlet"}));
+  EXPECT_TRUE(o.splits());
+  EXPECT_EQ(o.hybrid_width, 1);
+  EXPECT_DOUBLE_EQ(o.continuum.grain_weight, 0.3);
+  EXPECT_EQ(o.model, coupler::kModelMuI);
+  EXPECT_EQ(o.every, 10);
+  EXPECT_EQ(o.continuum.wall_contact, coupler::kWallFriction);
+  EXPECT_DOUBLE_EQ(o.continuum.wall_friction, 0.5);
+  const double lo[3] = {-1, -1, -1}, hi[3] = {1, 1, 1};
+  EXPECT_DOUBLE_EQ(o.container_edge(0, 0, lo, hi), 0.0);
+  EXPECT_DOUBLE_EQ(o.container_edge(0, 1, lo, hi), 1.0);    // INF: the box face
+  EXPECT_DOUBLE_EQ(o.container_edge(1, 0, lo, hi), 0.1);
+  EXPECT_EQ(o.output_path, "frames");
+  EXPECT_EQ(coupler::get_text(o.continuum.output_path), "frames");
+  EXPECT_EQ(o.continuum.output_every, 20);
+  EXPECT_DOUBLE_EQ(o.inertia, 0.25);
+  EXPECT_EQ(o.rezone_log, coupler::RezoneLog::kQuiet);
+  EXPECT_EQ(o.continuum.points_per_axis, 3);
+  EXPECT_DOUBLE_EQ(o.idle_timeout, 0.0);
+  EXPECT_EQ(o.mpm_state_path, "s.h5");
+  EXPECT_EQ(o.grain_type, 2);
+  EXPECT_DOUBLE_EQ(o.relax_time, 0.0);
+}
+
+TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {
+  auto o = parse("cell 0.01 adaptive 100 every 10 touch xlo touch ylo");
+  EXPECT_TRUE(o.adaptive() && o.splits());
+  EXPECT_DOUBLE_EQ(o.oracle.band, 0.01);
+  EXPECT_DOUBLE_EQ(o.oracle.continuum_depth, 0.03);
+  EXPECT_DOUBLE_EQ(o.continuum.pic, 0.0);    // the impulse rule where the band lies in the flow
+  EXPECT_EQ(o.continuum.touched_faces, coupler::face_bit(0, 0) | coupler::face_bit(1, 0));
+  EXPECT_DOUBLE_EQ(parse("cell 0.01 adaptive 100 every 10 pic 0.5").continuum.pic, 0.5);
+  EXPECT_EQ(parse("cell 0.01 adaptive 10 touch all", 3).continuum.touched_faces, 63u);
+  // fix_modify's oracle keywords: false for others, the same checks
+  EXPECT_TRUE(coupler::set_oracle_option(o.oracle, "depth", "0.05"));
+  EXPECT_DOUBLE_EQ(o.oracle.continuum_depth, 0.05);
+  EXPECT_FALSE(coupler::set_oracle_option(o.oracle, "every", "5"));
+  EXPECT_THROW(coupler::set_oracle_option(o.oracle, "surface_packing", "1"), coupler::OptionError);
+  o.oracle.band = 0.001;
+  EXPECT_THROW(coupler::check_oracle_options(o, 2), coupler::OptionError);
+}
+
+TEST(FixOptions, BadLinesNameTheKeyword) {
+  // the messages tests/test_coupled_launch.py expects from LAMMPS, and others
+  EXPECT_EQ(error_of("cell 0.01 bogus 3").rfind("unknown keyword 'bogus' (known keywords: cell, continuum, ", 0), 0u);
+  EXPECT_EQ(error_of("cell -0.01"), "keyword 'cell' must be > 0 (the MPM grid cell size), not -0.01");
+  EXPECT_EQ(error_of("model drucker_prager"), "keyword 'cell' (the MPM grid cell size) is required");
+  EXPECT_EQ(error_of("cell 0.01 model granite"), "keyword 'model' must be drucker_prager or mu_i, not 'granite'");
+  EXPECT_EQ(error_of("cell 0.01 timeout"), "keyword 'timeout' needs a value");
+  EXPECT_EQ(error_of("cell 0.01 every 0"), "keyword 'every' needs a positive integer, not '0'");
+  EXPECT_EQ(error_of("cell 0.01 every 2.5"), "keyword 'every' needs a positive integer, not '2.5'");
+  EXPECT_EQ(error_of("cell abc"), "keyword 'cell' needs a number, not 'abc'");
+  EXPECT_EQ(error_of("cell 0.01 continuum nowhere"),
+            "continuum region 'nowhere' does not exist (define it with the region command first)");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 discrete nowhere"),
+            "discrete region 'nowhere' does not exist (define it with the region command first)");
+  EXPECT_EQ(error_of("cell 0.01 discrete core").rfind("keyword 'discrete' needs adaptive zones (keyword 'adaptive')", 0),
+            0u);
+  EXPECT_EQ(error_of("cell 0.01 weight 1.5"),
+            "keyword 'weight' (the share of a hybrid cell's mass its grains keep) must be between 0 and 1, not 1.5");
+  EXPECT_EQ(error_of("cell 0.01 wall friction"), "keyword 'wall friction' needs the friction coefficient");
+  EXPECT_EQ(error_of("cell 0.01 wall friction -1"), "keyword 'wall friction' needs a coefficient >= 0");
+  EXPECT_EQ(error_of("cell 0.01 container 0 INF"), "keyword 'container' needs 4 values (xlo xhi ylo yhi; INF = the box face)");
+  EXPECT_EQ(error_of("cell 0.01 container 0 INF", 3),
+            "keyword 'container' needs 6 values (xlo xhi ylo yhi zlo zhi; INF = the box face)");
+  EXPECT_EQ(error_of("cell 0.01 steps_per_contact 1.5"),
+            "keyword 'steps_per_contact' (warn below this many DEM steps per contact) must exceed pi/2, where "
+            "velocity Verlet goes unstable, not 1.5");
+  EXPECT_EQ(error_of("cell 0.01 material no_such_material.toml").rfind(
+                "keyword 'material': material file no_such_material.toml not found", 0),
+            0u);
+  EXPECT_EQ(error_of("cell 0.01 material disks_2d", 3), "keyword 'material': disks_2d was calibrated in 2D, this run is 3D");
+  EXPECT_EQ(error_of("cell 0.01 material disks_2d friction 30"),
+            "keyword 'friction' conflicts with 'material', which sets the continuum's constants from the "
+            "calibration; leave one out");
+  EXPECT_EQ(error_of("cell 0.01 relax -1"), "keyword 'relax' (relaxation time of the velocity agreement, s; 0 = close "
+                                            "the gap at every exchange) must be >= 0, not -1");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 touch floor"),
+            "keyword 'touch' needs a container face (xlo, xhi, ylo, yhi or all), not 'floor'");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 touch floor", 3),
+            "keyword 'touch' needs a container face (xlo, xhi, ylo, yhi, zlo, zhi or all), not 'floor'");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 touch ylo touch zlo"),
+            "keyword 'touch' face 'zlo' needs a 3D box (a 2D box has no z faces)");
+  EXPECT_EQ(error_of("cell 0.01 touch ylo").rfind("keyword 'touch' needs adaptive zones (keyword 'adaptive')", 0), 0u);
+  EXPECT_EQ(error_of("cell 0.01 rezone_log verbose"), "keyword 'rezone_log' must be full, summary or quiet, not 'verbose'");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 15 every 10"),
+            "keyword 'adaptive' (15 steps) must be a multiple of 'every' (10): zones change right after an exchange");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 band 0.005"),
+            "keyword 'band' (0.005) must exceed 0.007071 (sqrt(2)/2 cells), or continuum cells may border discrete ones");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 depth 0.01 band 0.01"),
+            "keyword 'depth' (0.01) must exceed 'band' (0.01): the cells at the free surface must stay discrete");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 dilute 1.5"),
+            "keyword 'dilute' (a packing fraction) must be in (0, 1), not 1.5");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 shear_rate 0"),
+            "keyword 'shear_rate' (cells shearing faster are discrete, 1/s) must be in (0, inf), not 0");
+  EXPECT_EQ(error_of("cell 0.01 grain_type 3"), "keyword 'grain_type' 3 is not an atom type (1 to 2)");
+  EXPECT_EQ(error_of("cell 0.01 idle -1"), "keyword 'idle' must be >= 0 seconds (0 = wait forever), not -1");
+  EXPECT_EQ(error_of("cell 0.01 points_per_cell 5"), "keyword 'points_per_cell' (points per cell and axis) must be 1 to 4");
+  // the first problem on the line wins
+  EXPECT_EQ(error_of("bogus 1"), error_of("cell 0.01 bogus 1"));
+}
+
+}    // namespace
