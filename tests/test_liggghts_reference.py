@@ -77,8 +77,6 @@ def test_each_code_column_and_rest(results, code):
     assert res.front < res.width * (1 + 2 * 2.3 * res.aspect ** (2 / 3)) - 5 * res.d
     # overlaps stay small (kn = 200 rho g H0 d: mean ~0.3 % of d; measured max <= 1.7 %)
     assert res.max_overlap_final < 0.02, res.summary()
-    # runs fast enough for the suite (measured 25-36 s with 2 ranks)
-    assert res.wall_time < 120, res.summary()
 
 
 @pytest.mark.parametrize("code", ["lammps", "liggghts"])
