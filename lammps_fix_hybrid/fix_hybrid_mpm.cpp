@@ -24,10 +24,12 @@
 #include "memory.h"
 #include "modify.h"
 #include "output.h"
+#include "timer.h"
 #include "update.h"
 #include "utils.h"
 #include "version.h"
 
+#include "coupler/coupling_timer.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_session.hpp"
 #include "coupler/fix_options.hpp"
@@ -62,8 +64,10 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     run_rezones(new coupler::RezoneTally), timestep_checked(false), fewest_steps_warned(BIG), restored(false),
     state_loaded(false), clock_time(0.0), clock_step(-1), clock_dt(0.0), stress_id(nullptr),
     last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger(new coupler::EnergyLedger),
-    ledger_started(false), continuum_start(0.0)
+    ledger_started(false), continuum_start(0.0), run_timing(new coupler::CouplingTimer),
+    all_timing(new coupler::CouplingTimer), run_start_wall(0.0)
 {
+  static_assert(sizeof(vector_cache) / sizeof(vector_cache[0]) == coupler::kVecSize, "f_ID[] entries");
   // fix ID group hybrid/mpm keyword value ...: the options (coupler/fix_options.hpp)
   try {
     opt = std::make_unique<coupler::FixOptions>(coupler::parse_fix_options(
@@ -298,6 +302,10 @@ void FixHybridMPM::setup(int /*vflag*/)
     clock_step = update->ntimestep;
   }
   clock_dt = update->dt;
+  // this run's timing breakdown starts here (LAMMPS's own setup is done; the handshake of the
+  // first run is not counted)
+  run_timing->clear();
+  run_start_wall = MPI_Wtime();
   if (!link) connect();
   else check_gravity();
   if (zones.empty()) compute_zones();
@@ -331,6 +339,7 @@ void FixHybridMPM::end_of_step()
   double **v = atom->v;
   const double *rmass = atom->rmass;
   double kicked = 0.0;    // the kinetic energy the kicks add (energy ledger)
+  const double kicks_start = MPI_Wtime();
   for (int i : supported)
     for (int a = 0; a < 3; a++) {
       const double dv = dt * support[i][a];
@@ -338,11 +347,16 @@ void FixHybridMPM::end_of_step()
       v[i][a] += dv;
     }
   ledger->support_open += kicked;
+  charge(coupler::kTimeApply, MPI_Wtime() - kicks_start);
   const bigint step = update->ntimestep;
   const bool oracle_next = opt->adapt_every > 0 && converted && (step + 1) % opt->adapt_every == 0;
   if (oracle_next) stress_compute()->addstep(step + 1);    // its virial
   // LAMMPS prints its thermo output right after this step's end_of_step (Output::write)
-  if (output->next_thermo == step) log_rezone_summary(false);
+  if (output->next_thermo == step) {
+    const double log_start = MPI_Wtime();
+    log_rezone_summary(false);
+    charge(coupler::kTimeOutput, MPI_Wtime() - log_start);
+  }
   if (step % opt->every != 0) return;
   if (domain->dimension == 2) exchange<2>(false);
   else exchange<3>(false);
@@ -365,6 +379,66 @@ void FixHybridMPM::post_run()
   log_rezone_summary(true);
   if (comm->me == 0 && link)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} exchange(s) with the MPM process so far\n", exchanges));
+  if (link) print_timing_breakdown();
+}
+
+/* ----------------------------------------------------------------------
+   wall time spent in a section of the coupling (this run's and all runs')
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::charge(int section, double seconds)
+{
+  const auto s = static_cast<coupler::CouplingSection>(section);
+  run_timing->add(s, seconds);
+  all_timing->add(s, seconds);
+}
+
+/* ----------------------------------------------------------------------
+   the run's coupling timing breakdown, as LAMMPS's "MPI task timing
+   breakdown" (Finish): min/avg/max over the LAMMPS ranks, %total of the
+   run's wall time since this fix's setup; then LAMMPS's own Pair, Neigh,
+   Comm and Modify (the fix's time is part of Modify) for comparison
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::print_timing_breakdown()
+{
+  const double wall_local = MPI_Wtime() - run_start_wall;
+  double wall = 0.0;
+  MPI_Allreduce(&wall_local, &wall, 1, MPI_DOUBLE, MPI_SUM, world);
+  wall /= comm->nprocs;
+
+  constexpr int n = coupler::kTimeSections + 1;    // the sections and their total
+  double t[n], t_sq[n], t_min[n], t_max[n], t_sum[n], t_sq_sum[n];
+  for (int k = 0; k < coupler::kTimeSections; k++) t[k] = run_timing->seconds[k];
+  t[n - 1] = run_timing->total();
+  for (int k = 0; k < n; k++) t_sq[k] = t[k] * t[k];
+  MPI_Allreduce(t, t_min, n, MPI_DOUBLE, MPI_MIN, world);
+  MPI_Allreduce(t, t_max, n, MPI_DOUBLE, MPI_MAX, world);
+  MPI_Allreduce(t, t_sum, n, MPI_DOUBLE, MPI_SUM, world);
+  MPI_Allreduce(t_sq, t_sq_sum, n, MPI_DOUBLE, MPI_SUM, world);
+
+  // LAMMPS's own timers of this run (wall time, the ranks' mean)
+  constexpr int ndem = 4;
+  const double dem_local[ndem] = {timer->get_wall(Timer::PAIR), timer->get_wall(Timer::NEIGH),
+                                  timer->get_wall(Timer::COMM), timer->get_wall(Timer::MODIFY)};
+  double dem[ndem];
+  MPI_Allreduce(dem_local, dem, ndem, MPI_DOUBLE, MPI_SUM, world);
+  for (double &d : dem) d /= comm->nprocs;
+  if (comm->me != 0) return;
+
+  std::string block = coupler::timing_header(
+      fmt::format("\nfix hybrid/mpm timing breakdown ({} exchanges, {} rezones):", run_timing->exchanges,
+                  run_timing->rezones));
+  for (int k = 0; k < coupler::kTimeSections; k++)
+    block += coupler::timing_line(coupler::kTimeSectionLabels[k],
+                                  coupler::section_timing(t_min[k], t_max[k], t_sum[k], t_sq_sum[k], comm->nprocs, wall));
+  const coupler::SectionTiming total =
+      coupler::section_timing(t_min[n - 1], t_max[n - 1], t_sum[n - 1], t_sq_sum[n - 1], comm->nprocs, wall);
+  block += coupler::timing_line("Coupling", total);
+  block += fmt::format("DEM side (LAMMPS timer, avg): Pair {:.5g} Neigh {:.5g} Comm {:.5g} Modify {:.5g} s; "
+                       "coupling {:.5g} s of {:.5g} s wall ({:.2f}%, part of Modify)\n",
+                       dem[0], dem[1], dem[2], dem[3], total.avg, wall, total.percent);
+  utils::logmesg(lmp, block);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -394,6 +468,16 @@ void FixHybridMPM::fill_thermo_vector()
   MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
   coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start,
                          vector_cache);
+  // where the coupling's wall time went, the ranks' mean (coupler::ThermoEntry)
+  const double times_local[5] = {all_timing->total(), all_timing->seconds[coupler::kTimeMpmWait],
+                                 all_timing->seconds[coupler::kTimeRezone] + all_timing->seconds[coupler::kTimeOracle],
+                                 run_timing->total(), MPI_Wtime() - run_start_wall};
+  double times[5];
+  MPI_Allreduce(times_local, times, 5, MPI_DOUBLE, MPI_SUM, world);
+  vector_cache[coupler::kVecTimeCoupling] = times[0] / comm->nprocs;
+  vector_cache[coupler::kVecTimeMpmWait] = times[1] / comm->nprocs;
+  vector_cache[coupler::kVecTimeRezone] = times[2] / comm->nprocs;
+  vector_cache[coupler::kVecTimeShare] = times[4] > 0.0 ? 100.0 * times[3] / times[4] : 0.0;
   vector_step = update->ntimestep;
 }
 

@@ -47,6 +47,7 @@ struct OracleSettings;
 struct FixOptions;
 struct RezoneReport;
 class RezoneTally;
+struct CouplingTimer;
 }
 
 namespace LAMMPS_NS {
@@ -142,7 +143,8 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::StepAck> last_ack;
   bigint coupled_grains;
   bigint vector_step;                     // step of the cached thermo vector
-  double vector_cache[29];               // f_ID[1..29], docs/fix_hybrid_mpm.md (coupler::ThermoEntry)
+  double vector_cache[33];               // f_ID[1..33], docs/fix_hybrid_mpm.md (coupler::ThermoEntry)
+
 
   // the grains' side of the energy ledger (coupler/dem_ledger.hpp), this rank's grains
   std::unique_ptr<coupler::EnergyLedger> ledger;
@@ -150,6 +152,14 @@ class FixHybridMPM : public Fix {
   double continuum_start;                 // the continuum's energy when the ledger started
   double grain_energy() const;            // kinetic (with rotation) + potential, this rank's grains
   void close_dem_bracket();               // LAMMPS's steps since the last bracket
+
+  // where the coupling's wall time goes on this rank (coupler/coupling_timer.hpp): this run's,
+  // for the breakdown printed at its end, and all runs', for the thermo vector
+  std::unique_ptr<coupler::CouplingTimer> run_timing;
+  std::unique_ptr<coupler::CouplingTimer> all_timing;
+  double run_start_wall;                  // MPI_Wtime at this run's setup
+  void charge(int section, double seconds);
+  void print_timing_breakdown();
 
   void connect();
   template <int D> void rezone(int source);

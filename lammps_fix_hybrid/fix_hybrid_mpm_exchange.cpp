@@ -16,6 +16,7 @@
 #include "update.h"
 #include "utils.h"
 
+#include "coupler/coupling_timer.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_session.hpp"
@@ -105,6 +106,7 @@ void FixHybridMPM::check_finite_grains(const std::string &when)
 template <int D>
 void FixHybridMPM::exchange(bool force_output)
 {
+  const double start = MPI_Wtime();
   check_finite_grains("before the exchange");
   double **x = atom->x, **v = atom->v;
   double *rmass = atom->rmass;
@@ -142,15 +144,38 @@ void FixHybridMPM::exchange(bool force_output)
   h.n_grains = n_coupled;
   h.next_time = next_exchange_time(force_output);
   coupler::StepAck ack;
+  // the session's round trip is the wait for the MPM process, less the grains' updates and the
+  // output frame it calls back for
+  double applying = 0.0, framing = 0.0;
+  const double sent = MPI_Wtime();
   const coupler::StepOutcome outcome = session->exchange(
-      h, records, [&](const std::vector<coupler::NodeUpdate> &updates) { apply_updates<D>(view, updates, index); },
-      [&] { return frame_grains(); }, ack);
+      h, records,
+      [&](const std::vector<coupler::NodeUpdate> &updates) {
+        const double t0 = MPI_Wtime();
+        apply_updates<D>(view, updates, index);
+        applying += MPI_Wtime() - t0;
+      },
+      [&] {
+        const double t0 = MPI_Wtime();
+        auto frame = frame_grains();
+        framing += MPI_Wtime() - t0;
+        return frame;
+      },
+      ack);
+  const double replied = MPI_Wtime();
   last_step = update->ntimestep;
   check(outcome);
 
   *last_ack = ack;
   exchanges++;
   link->count_exchange();
+  const double end = MPI_Wtime();
+  charge(coupler::kTimeMpmWait, replied - sent - applying - framing);
+  charge(coupler::kTimeApply, applying);
+  charge(coupler::kTimeOutput, framing);
+  charge(coupler::kTimeExchange, (end - start) - (replied - sent));
+  run_timing->exchanges++;
+  all_timing->exchanges++;
 }
 
 /* ----------------------------------------------------------------------

@@ -16,6 +16,7 @@
 #include "update.h"
 #include "utils.h"
 
+#include "coupler/coupling_timer.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_rezone.hpp"
@@ -302,6 +303,7 @@ bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cell
 template <int D>
 void FixHybridMPM::rezone(int source)
 {
+  const double start = MPI_Wtime();
   check_finite_grains("before the rezone");
   const auto &grid = transfer<D>().grid();
   // as fix pour: atoms are created and deleted now, the ghosts are rebuilt after
@@ -321,8 +323,10 @@ void FixHybridMPM::rezone(int source)
   std::vector<coupler::RezoneCell<D>> cells;
   coupler::StepHeader header = step_header(coupler::kStepRezone);
   header.zone_source = source;
+  const double asked = MPI_Wtime();
   check(session->rezone_zones<D>(header, zones, opt->oracle, [&] { return discrete_cells(); }, volumes, zones.size(),
                                  new_zones, cells, ack));
+  const double oracle_wait = MPI_Wtime() - asked;
   zones = std::move(new_zones);
 
   // 2. the sums of the grains in the moving cells, before anything changes
@@ -414,4 +418,8 @@ void FixHybridMPM::rezone(int source)
   for (int k = 0; k < 7; k++) before[k] = grains_before[k] + ack.before[k], after[k] = grains_after[k] + points_after[k];
   log_rezone(report, source, before, after);
   check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
+  charge(coupler::kTimeOracle, oracle_wait);
+  charge(coupler::kTimeRezone, MPI_Wtime() - start - oracle_wait);
+  run_timing->rezones++;
+  all_timing->rezones++;
 }

@@ -16,6 +16,7 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import BUILD, REPO
@@ -307,6 +308,96 @@ def test_touched_floor_lets_the_continuum_reach_it(tmp_path, hybrid_programs, to
         assert f"the continuum may touch the container faces {faces} (" in lammps_log
     else:
         assert "may touch" not in lammps_log
+
+
+TIMING_SECTIONS = ["Exchange", "MPM wait", "Apply", "Rezone", "Oracle", "Output", "Coupling"]
+
+
+def timing_blocks(log_text: str) -> list[dict]:
+    """The fix's timing breakdowns in a log: counts, one row (min, avg, max, %varavg, %total) per
+    section, and its DEM-side line."""
+    blocks = []
+    lines = log_text.splitlines()
+    for i, ln in enumerate(lines):
+        m = re.match(r"fix hybrid/mpm timing breakdown \((\d+) exchanges, (\d+) rezones\):$", ln)
+        if not m:
+            continue
+        assert lines[i + 1] == "Section |  min time  |  avg time  |  max time  |%varavg| %total", lines[i + 1]
+        assert set(lines[i + 2]) == {"-"}, lines[i + 2]
+        rows = {}
+        for row in lines[i + 3:i + 3 + len(TIMING_SECTIONS)]:
+            label, *values = [f.strip() for f in row.split("|")]
+            rows[label] = [float(v) for v in values]
+        blocks.append({"exchanges": int(m.group(1)), "rezones": int(m.group(2)), "rows": rows,
+                       "dem": lines[i + 3 + len(TIMING_SECTIONS)]})
+    return blocks
+
+
+def test_timing_breakdown_at_the_end_of_every_run_and_in_the_thermo_vector(tmp_path, hybrid_programs):
+    """Two coupled runs with adaptive zones on 2 ranks: each ends with the fix's timing breakdown
+    in LAMMPS's columns, whose sections add up to the coupling's total, a share of the run's wall
+    time; thermo prints entries 30-33, non-negative, the cumulative ones never decreasing."""
+    def edit(text):
+        text = replace_fix_line(with_fixed_faces(text),
+                                "cell 0.01 every 5 adaptive 10 depth 0.012 band 0.008 touch ylo")
+        text = text.replace("thermo          50", "thermo          10")
+        out = text.replace("thermo_style    custom step atoms ke f_couple",
+                           "thermo_style    custom step atoms ke f_couple f_couple[30] f_couple[31] f_couple[32] "
+                           "f_couple[33]")
+        assert out != text
+        return out
+    log = tmp_path / "log.lammps"
+    deck = deck_copy(tmp_path, edit, extra="\nrun             20\n")
+    proc, _ = launch("-np", "2", str(deck), "-var", "nsteps", "40", "-log", str(log), timeout=120)
+    text = output(proc)
+    assert proc.returncode == 0, text
+    lammps_log = log.read_text()
+    blocks = timing_blocks(lammps_log)
+    assert len(blocks) == 2, lammps_log
+    # 40 steps every 5 (8 exchanges), then 20 more (4, the first step not an exchange step of its own)
+    assert [b["exchanges"] for b in blocks] == [8, 4], lammps_log
+    assert blocks[0]["rezones"] >= 1, lammps_log                 # the conversion, then the oracle's
+    for b in blocks:
+        rows = b["rows"]
+        assert list(rows) == TIMING_SECTIONS, rows
+        for label, (tmin, tavg, tmax, varavg, percent) in rows.items():
+            assert 0.0 <= tmin <= tavg * (1 + 1e-4) + 1e-9 and tavg <= tmax * (1 + 1e-4) + 1e-9, (label, rows)
+            assert varavg >= 0.0 and 0.0 <= percent <= 100.0, (label, rows)
+        total = rows["Coupling"]
+        sections = [rows[s] for s in TIMING_SECTIONS[:-1]]
+        # the sections add up to the coupling's total (5 significant digits, 2 decimals of %)
+        assert sum(r[1] for r in sections) == pytest.approx(total[1], rel=1e-3, abs=1e-4), rows
+        assert sum(r[4] for r in sections) == pytest.approx(total[4], abs=0.05), rows
+        assert all(r[1] <= total[1] * (1 + 1e-4) for r in sections), rows
+        assert total[1] > 0.0 and rows["MPM wait"][1] > 0.0, rows
+        m = re.match(r"DEM side \(LAMMPS timer, avg\): Pair (\S+) Neigh (\S+) Comm (\S+) Modify (\S+) s; "
+                     r"coupling (\S+) s of (\S+) s wall \((\S+)%, part of Modify\)$", b["dem"])
+        assert m, b["dem"]
+        pair, neigh, comm, modify, coupling, wall, share = (float(g) for g in m.groups())
+        assert min(pair, neigh, comm, modify) >= 0.0
+        assert coupling == pytest.approx(total[1], rel=1e-3, abs=1e-4) and coupling <= wall
+        assert share == pytest.approx(total[4], abs=0.01) and 0.0 < share <= 100.0
+    # the first run's rezones (with the oracle) are in its block
+    assert blocks[0]["rows"]["Rezone"][1] > 0.0, blocks[0]
+    # thermo: entries 30-33 on every thermo line of both runs
+    header = "Step Atoms KinEng f_couple f_couple[30] f_couple[31] f_couple[32] f_couple[33]".split()
+    rows = []
+    lines = lammps_log.splitlines()
+    for i, ln in enumerate(lines):
+        if ln.split() == header:
+            for row in lines[i + 1:]:
+                if row.startswith("Loop time"):
+                    break
+                fields = row.split()
+                if len(fields) == len(header) and fields[0].isdigit():    # (rezone lines between)
+                    rows.append([float(f) for f in fields])
+    assert [int(r[0]) for r in rows] == list(range(0, 41, 10)) + [40, 50, 60], lammps_log
+    coupling, wait, rezone, share = (np.array([r[k] for r in rows]) for k in (4, 5, 6, 7))
+    assert (coupling >= 0).all() and (wait >= 0).all() and (rezone >= 0).all(), rows
+    assert (np.diff(coupling) >= 0).all() and (np.diff(wait) >= 0).all() and (np.diff(rezone) >= 0).all(), rows
+    assert (wait + rezone <= coupling * (1 + 1e-9)).all(), rows
+    assert coupling[-1] > coupling[0] and wait[-1] > 0, rows
+    assert ((share >= 0) & (share <= 100)).all() and share[-1] > 0, rows
 
 
 def test_bad_fix_line_through_the_plugin(tmp_path, hybrid_plugin):

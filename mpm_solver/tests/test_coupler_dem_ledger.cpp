@@ -55,7 +55,12 @@ TEST(DemLedger, VectorAddsBothSidesAndItsResidualClosesTheLedger) {
   a.energy += 0.125;
   coupler::thermo_vector(a, 9, 33, totals, sums, continuum_start, v);
   EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyResidual], 0.125);
-  EXPECT_EQ(coupler::kVecSize, 29);    // f_ID[1..29] in docs/fix_hybrid_mpm.md
+  // f_ID[1..33] in docs/fix_hybrid_mpm.md: the timing entries come after the ledger's, which
+  // keep their numbers; they are the host's wall clock, left at zero here
+  EXPECT_EQ(coupler::kVecEnergyResidual, 28);
+  EXPECT_EQ(coupler::kVecTimeCoupling, 29);
+  EXPECT_EQ(coupler::kVecSize, 33);
+  for (int k = coupler::kVecTimeCoupling; k < coupler::kVecSize; k++) EXPECT_EQ(v[k], 0.0) << k;
 }
 
 }    // namespace

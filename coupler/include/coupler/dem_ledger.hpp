@@ -1,6 +1,6 @@
 #pragma once
 // The DEM side's figures for thermo output: the grains' side of the energy ledger
-// (docs/fix_hybrid_mpm.md, "Energy ledger") and the fix's global vector (entries 1-29, "Restart,
+// (docs/fix_hybrid_mpm.md, "Energy ledger") and the fix's global vector (entries 1-33, "Restart,
 // fix_modify, output"). Host-neutral: the host sums its ranks' figures and prints the vector.
 
 #include <cstdint>
@@ -54,7 +54,11 @@ enum ThermoEntry {
   // the energy ledger (J, J/m in 2D), as of the last exchange or rezone
   kVecEnergy, kVecEnergyGrains, kVecEnergyContinuum, kVecEnergyDem, kVecEnergyContinuumSteps, kVecEnergyAgreementGrains,
   kVecEnergyAgreementContinuum, kVecEnergySupport, kVecEnergyRezoneGrains, kVecEnergyRezoneContinuum,
-  kVecEnergyResidual, kVecSize
+  kVecEnergyResidual,
+  // where the coupling's wall time went (coupler/coupling_timer.hpp), the ranks' mean (s): all of
+  // it, waiting for the MPM process, rezones (with the oracle), all runs; then the coupling's share
+  // of this run's wall time so far (%)
+  kVecTimeCoupling, kVecTimeMpmWait, kVecTimeRezone, kVecTimeShare, kVecSize
 };
 
 /// The vector from the last acknowledgement of the MPM process (the continuum's figures, as of
