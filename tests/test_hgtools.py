@@ -4,9 +4,10 @@ from __future__ import annotations
 import hashlib
 import json
 
+import numpy as np
 import pytest
 
-from hgtools import logs
+from hgtools import bed, impact, laws, logs
 from hgtools.cache import Settled
 from hgtools.runner import TOOLS, Forms, RunFailed, command, run_deck
 
@@ -77,3 +78,70 @@ def test_cache_keys_stay_those_of_the_existing_entries(tmp_path):
     state.write_text("state")
     entry.store(state, {"grains": 5})
     assert entry.cached(with_info=True) and entry.info() == {"grains": 5} and entry.path.read_text() == "state"
+
+
+def test_katsuragi_durian_fit_recovers_k_and_d1():
+    mp, k, d1 = 0.005, 400.0, 0.01
+    z = np.linspace(1e-4, 0.02, 400)
+    v = 4.0 * np.exp(-z / 0.008)                      # v^2 not linear in z: the two terms are told apart
+    force = mp * laws.G + k * z + mp * v ** 2 / d1
+    fit = laws.katsuragi_durian_fit(z, v, force, mp, 0.002)
+    assert fit["k"] == pytest.approx(k, rel=1e-9) and fit["d1"] == pytest.approx(d1, rel=1e-9)
+    assert fit["r2"] == pytest.approx(1.0) and len(fit["bins"]) == 20
+    assert np.isnan(laws.katsuragi_durian_fit(z[:10], v[:10], force[:10], mp, 0.002)["k"])   # too few records
+
+
+def test_published_laws():
+    rho_p, rho_b, dp, h, mu = 2500.0, 1500.0, 0.016, 1.3, 0.5
+    dep = laws.uehara_depth(rho_p, rho_b, dp, h, mu)
+    assert dep == pytest.approx(0.14 / mu * (rho_p / rho_b) ** 0.5 * dp ** (2 / 3) * (h + dep) ** (1 / 3), rel=1e-12)
+    assert laws.rankine_drag(1500.0, 0.01, 30.0) == pytest.approx(0.5 * 3.0 * 1500.0 * laws.G * 1e-4)   # K_p(30) = 3
+    assert laws.beverloo_3d(1500.0, 0.013, 0.002) == pytest.approx(0.58 * 1500.0 * laws.G ** 0.5 * 0.01 ** 2.5)
+    assert laws.beverloo_2d(1500.0, 0.013, 0.002) == pytest.approx(np.pi / 4 * 1500.0 * laws.G ** 0.5 * 0.01 ** 1.5)
+    assert laws.beverloo_3d(1500.0, 0.002, 0.002) == 0.0                            # hole narrower than 1.5 d
+
+
+def test_floor_hole_surface_and_packing_of_a_lattice():
+    d = 0.002
+    floor, s, inscribed = bed.floor_with_hole(0.03, 0.012, d)
+    assert s <= 1.2 * d and inscribed >= 0.012
+    dist = np.hypot(floor[:, 0] - 0.015, floor[:, 1] - 0.015)
+    assert dist.min() - 0.5 * d == pytest.approx(0.5 * inscribed)
+    # a simple cubic lattice of spheres, spacing a, radius r: phi = 4/3 pi r^3 / a^3, surface = top layer + r
+    a, r, n, layers = 0.002, 0.0009, 30, 12
+    c = (np.arange(n) + 0.5) * a
+    X, Y, Z = np.meshgrid(c, c, (np.arange(layers) + 0.5) * a, indexing="ij")
+    dump = dict(x=X.ravel(), y=Y.ravel(), z=Z.ravel(), radius=np.full(X.size, r), type=np.ones(X.size))
+    phi = 4 / 3 * np.pi * r ** 3 / a ** 3
+    surface = bed.surface_near_axis(dump, n * a, d, 0.01)
+    assert surface == pytest.approx((layers - 0.5) * a + r)
+    assert bed.box_packing(dump, n * a, d, surface) == pytest.approx(phi, rel=0.1)
+    slab = dict(x=X.ravel(), y=Z.ravel(), z=Y.ravel(), radius=np.full(X.size, r), type=np.ones(X.size))
+    state = bed.slab_bed(slab, layers * a, n * a, d, n * a)
+    assert state["surface"] == pytest.approx((layers - 0.5) * a + r) and state["packing"] == pytest.approx(phi, rel=0.1)
+
+
+def test_projectile_record_contact_stop_and_energy():
+    mp, dp, surface = 0.01, 0.012, 0.03
+    t = np.linspace(0.0, 0.02, 201)
+    vz = np.where(t < 0.005, -4.0, -4.0 * np.clip(1 - (t - 0.005) / 0.01, 0.0, 1.0))   # touches at 5 ms, stops at 15
+    zp = surface + 0.5 * dp + 0.002 - np.concatenate([[0.0], np.cumsum(-vz[:-1] * np.diff(t))])
+    fz = np.where(t < 0.005, -mp * laws.G, 3.0)                                            # the bed pushes from 5 ms
+    rec = np.column_stack([t, zp, vz, fz, 0.5 * mp * vz ** 2, np.zeros_like(t)])
+    m = impact.projectile_record(rec, surface, dp, mp, 0.002, vstop=0.04)
+    assert m["launch_gap"] == pytest.approx(0.002)
+    assert 0.0099 < m["stop_time"] < 0.0101
+    assert m["peak_decel"] == pytest.approx((3.0 + mp * laws.G) / mp)
+    assert m["ke0"] == pytest.approx(0.08) and m["mobile_energy_gain"] == 0.0
+    assert m["max_depth"] == pytest.approx(zp[0] - zp.min() - 0.002)
+
+
+def test_hybrid_totals_from_the_log():
+    text = ("HYBRID mass 2.0 points 10 cells continuum 3 hybrid 4\nHYBRID mass 2.02 points 12 cells continuum 5 hybrid 1\n"
+            "Step f_couple[3] f_couple[8] f_couple[16] f_couple[17]\n 0 5 1.0 2 3\n 10 7 1.01 4 1\n")
+    balance, points, cells = logs.hybrid_mass_lines(text)
+    assert balance == pytest.approx(0.01) and points == 12 and cells == 7
+    assert np.isnan(logs.hybrid_mass_lines("nothing")[0])
+    totals = logs.hybrid_totals(text)
+    assert totals["mass_drift"] == pytest.approx(0.01) and totals["points_max"] == 7
+    assert totals["continuum_cells_max"] == 4 and totals["hybrid_cells_max"] == 3

@@ -7,27 +7,9 @@
     --code hybrid    dem_3d.lmp + input_decks/silo/hybrid_3d.lmp (fix hybrid/mpm, adaptive
                      zones) through tools/hybrid_launch.py (lmp_hybrid + mpm_solver)
 
-The driver writes the initial data file (floor of frozen spheres with the orifice left out,
-loose lattice of grains above it; see dem_3d.lmp's header for the scene), prepares the
-settled silo with one code (pour, settle, trim, settle with the orifice closed; the deck
-writes it as a data file) and discharges it, with the same code or another: every code can
-start from the settled data file of any other (contact histories are not in data files, so
-the codes start from the same state). By default the preparation is done by LAMMPS (the
-reference; `--prep-code` changes it) and cached per parameter set in
-$HYBRID_CACHE/dem3d_silo/ (or cache_dir); the discharge is then run by `--code`.
-
-Discharged mass: M_out(t) = M_fall + M_del, the mass of the grains whose centre went below
-the bottom of the floor layer (y = -d), still falling or deleted. The steady rate W is the
-least-squares slope of M_out(t) over the window of tools/dem_silo.py (hgtools.discharge.fit_rate, from
-TRANSIENT = 0.1 s after the opening until FIT_FMAX of the mass has left, or the end).
-
-3D Beverloo law (docs/design.md section 6): W = C rho_b sqrt(g) (D - k d)^(5/2) with C = 0.58,
-k = 1.5, rho_b = phi rho, phi the packing fraction of the settled silo measured away from
-the walls, the floor and the free surface. D is the inscribed diameter of the orifice in the
-floor lattice (D_eff >= the nominal D; the hole's edge is the floor spheres' surface, and the
-lattice leaves it a little wider than asked). Nedderman's conditions for a rate independent
-of the walls are W > 2.5 D and W > D + 30 d; the reduced silo violates the second one, which
-the summary flags: the comparison is a factor.
+Prepares the settled silo with `--prep-code` (default LAMMPS; cached in $HYBRID_CACHE/dem3d_silo/),
+discharges it with `--code`, and measures the steady rate of the discharged mass against the 3D
+Beverloo law (the method: tools/README.md, "dem3d_silo.py").
 
     tools/dem3d_silo.py --code lammps   --np 2 --out /tmp/s3_lmp
     tools/dem3d_silo.py --code liggghts --np 2 --out /tmp/s3_lig
@@ -43,40 +25,17 @@ from pathlib import Path
 
 import numpy as np
 
-from hgtools import cli, logs
+from hgtools import bed, cli, logs
+from hgtools.bed import PACKING_MARGIN, floor_with_hole
 from hgtools.cache import Settled
 from hgtools.discharge import Discharge, measure
 from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, covered_fraction, grains_needed, jittered, max_overlap,
                             pour_margin, read_data, write_spheres)
+from hgtools.laws import BEVERLOO_C3D, BEVERLOO_K, G, beverloo_3d
 from hgtools.runner import CODES, Forms, workdir
 
 FORMS = Forms("silo")
-G = 9.81
-BEVERLOO_C = 0.58            # docs/design.md section 6 (3D, circular orifice)
-BEVERLOO_K = 1.5
-PACKING_MARGIN = 3.0         # the packing fraction is measured this many d from walls, floor, top
 DEFAULTS = dict(width=0.03, height=0.04, orifice=0.012, d=0.002, rho=2500.0, tout=0.01)
-
-
-def beverloo_3d(rho_b: float, orifice: float, d: float, c: float = BEVERLOO_C, k: float = BEVERLOO_K,
-                g: float = G) -> float:
-    """3D Beverloo rate W = C rho_b sqrt(g) (D - k d)^(5/2), kg/s."""
-    return c * rho_b * math.sqrt(g) * max(orifice - k * d, 0.0) ** 2.5
-
-
-def floor_lattice(width: float, orifice: float, d: float) -> tuple[np.ndarray, float, float]:
-    """Centres (x, z) of the floor spheres, the lattice spacing and the inscribed diameter of
-    the orifice. Spacing s = W / ceil(W / (FLOOR_SPACING d)) <= 1.2 d (the rows fill the width;
-    a 0.9 d grain cannot pass a hole of four spheres of diameter d while s < 1.34 d); the
-    spheres whose centre is within D/2 + d/2 of the axis are left out."""
-    n = int(math.ceil(width / (FLOOR_SPACING * d) - 1e-9))
-    s = width / n
-    c = (np.arange(n) + 0.5) * s
-    X, Z = np.meshgrid(c, c, indexing="ij")
-    xz = np.column_stack([X.ravel(), Z.ravel()])
-    dist = np.hypot(xz[:, 0] - 0.5 * width, xz[:, 1] - 0.5 * width)
-    keep = dist >= 0.5 * orifice + 0.5 * d
-    return xz[keep], s, float(2 * dist[keep].min() - d)
 
 
 def box_bottom(height: float, d: float, tout: float) -> float:
@@ -87,12 +46,10 @@ def box_bottom(height: float, d: float, tout: float) -> float:
 
 def write_data(path: Path, width: float, height: float, orifice: float, d: float, seed: int,
                rho: float = 2500.0, tout: float = 0.01) -> dict:
-    """Writes the initial data file both decks read (atom_style sphere: id type diameter
-    density x y z): the floor (type 2, centres at y = -d/2) and the grains (type 1, diameters
-    uniform in [0.9, 1.1] d) on a lattice of spacing LATTICE_SPACING d offset by up to
-    +-LATTICE_JITTER d, from y = 0.6 d up until 1.08 * PHI_EST * W^2 H of grain volume."""
+    """Writes the initial data file both decks read (atom_style sphere: id type diameter density
+    x y z): the floor with the orifice left out and the grains to pour (tools/README.md, "dem3d_silo.py")."""
     rng = np.random.default_rng(seed)
-    floor, spacing, d_eff = floor_lattice(width, orifice, d)
+    floor, spacing, d_eff = floor_with_hole(width, orifice, d)
     margin = pour_margin(d)
     xs = np.arange(margin, width - margin + 1e-12, LATTICE_SPACING * d)
     need = grains_needed(width * width * height, d)
@@ -135,7 +92,7 @@ class Silo3dResult(Discharge):
                 f"(inscribed {self.orifice_eff:.4g} m, D/d = {self.orifice_eff / self.d:.3g}), d = {self.d:g} m: "
                 f"{self.grains} grains, {self.mass0:.4g} kg, packing fraction {self.packing:.4f}\n"
                 + self.times_line(f" ({self.prep_code})") + self.rate_line("kg/s") +
-                f"  3D Beverloo C = {BEVERLOO_C:g}, k = {BEVERLOO_K:g}: {self.beverloo:.4g} kg/s; "
+                f"  3D Beverloo C = {BEVERLOO_C3D:g}, k = {BEVERLOO_K:g}: {self.beverloo:.4g} kg/s; "
                 f"measured/Beverloo = {self.ratio:.3f}"
                 f"{'' if self.walls_far else ' (silo narrower than W > D + 30 d)'}\n"
                 + self.balance_text() + f"{self.settled_below} grains below the lid level after settling; "
@@ -150,12 +107,13 @@ def prepare(width: float, height: float, orifice: float, d: float, seed: int, ex
             prep_code: str = "lammps", use_cache: bool = True, cache_dir: str | Path | None = None,
             work: Path | None = None, exe: str | None = None, timeout: float = 1800) -> tuple[Path, dict, bool]:
     """The settled silo (data file) and its preparation record, from the cache or prepared
-    now with `prep_code`. The orifice is part of the key (it is in the floor), and so is this
-    driver (it writes the initial grains)."""
+    now with `prep_code`. The orifice is part of the key (it is in the floor), and so are this
+    driver and hgtools/bed.py (they write the initial grains)."""
     prep_extra = {k: v for k, v in extra.items() if k not in ("tdis", "fstop")}
     cache = Settled.entry("dem3d_silo", f"w{width:g}_h{height:g}_D{orifice:g}_d{d:g}_s{seed}_{prep_code}",
                           dict(w=width, h=height, D=orifice, d=d, seed=seed, code=prep_code, np=np_, **prep_extra),
-                          (FORMS.deck(prep_code), Path(__file__)), "settled.data", cache_dir)
+                          (FORMS.deck(prep_code), Path(__file__), Path(bed.__file__)), "settled.data",
+                          cache_dir)
     if use_cache and cache.cached(with_info=True):
         return cache.path, cache.info(), False
     work = Path(work).resolve() if work else cache.path.parent

@@ -1,19 +1,12 @@
 #!/usr/bin/env python3
 """The quasi-3D plough: a rigid vertical blade inserted to depth h into a settled granular bed
-(a slab, periodic in z) and dragged in x at constant speed V; the measure is the horizontal
-drag force on the blade over the steady part of the drag. Three forms of one scene sharing one
-parameter set: LAMMPS (input_decks/plough/dem_3d.lmp), LIGGGHTS (liggghts_3d.in, the twin
-deck with the identical parameter block) and the hybrid twin (dem_3d.lmp with
-`-var hybrid 1 -var hdeck hybrid_3d.lmp`, fix hybrid/mpm with adaptive zones and a discrete
-region moving with the blade, run through tools/hybrid_launch.py).
+(a slab, periodic in z) and dragged in x at constant speed V, in three forms sharing one parameter
+set: LAMMPS (input_decks/plough/dem_3d.lmp), LIGGGHTS (liggghts_3d.in, the twin deck) and the
+hybrid twin (dem_3d.lmp with hybrid_3d.lmp: fix hybrid/mpm, a discrete region moving with the blade).
 
-This driver writes the data file both codes read (frozen floor spheres, the blade as a rigid
-sheet of spheres above the bed, and a loose lattice of polydisperse grains to pour; the
-column collapse's constants of tools/dem3d_collapse.py), runs one form, reads drag.dat and
-the dumps, and compares the mean drag per unit width with Rankine's passive earth pressure,
-F/W = 1/2 K_p rho_b g h^2, K_p = (1 + sin phi)/(1 - sin phi) (Albert et al., PRL 82, 205
-(1999): F ~ rho g w h^2, velocity independent at low speed), rho_b measured in the settled
-bed, phi = PHI_BED.
+Writes the data file (floor, blade, grains to pour), runs one form and measures the mean drag on
+the blade over the steady part of the drag, compared with Rankine's passive earth pressure
+(the method: tools/README.md, "dem_plough.py").
 
     tools/dem_plough.py --code lammps   --np 2 --out /tmp/pl_lmp
     tools/dem_plough.py --code liggghts --np 2 --out /tmp/pl_lig
@@ -29,12 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from hgtools import cli, logs
+from hgtools.bed import slab_bed
 from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, jittered, max_overlap, pour_lattice, read_dump,
                             slab_floor, write_spheres)
+from hgtools.laws import rankine_drag
 from hgtools.runner import CODES, Forms, workdir
 
 FORMS = Forms("plough")
-G = 9.81
 
 PHI_BED = 27.0          # internal friction angle of the bed, degrees (spheres, mu = 0.5: 25-30)
 BLADE_SPACING = 0.5     # blade sphere spacing in y and z, in d (no grain passes, nearly flat)
@@ -43,12 +37,6 @@ XBLADE_D = 4.0          # blade start, x of its plane, in d from the back wall
 WINDOW = (0.5, 1.0)     # the steady part: this fraction of the dragged distance (from, to)
 HYBRID_ROWS = 9          # hybrid twin's slab thickness in floor rows (10.8 d: see hybrid_3d.lmp)
 END_MARGIN = 3.0        # end wall this many (1 + topfac) h beyond the blade's final position
-
-
-def rankine_drag(rho_b: float, depth: float, phi_deg: float = PHI_BED) -> float:
-    """Passive earth pressure per unit width on a vertical wall of depth h, N/m."""
-    s = math.sin(math.radians(phi_deg))
-    return 0.5 * (1 + s) / (1 - s) * rho_b * G * depth ** 2
 
 
 def geometry(depth: float, d: float, drag: float, topfac: float) -> dict:
@@ -62,15 +50,8 @@ def geometry(depth: float, d: float, drag: float, topfac: float) -> dict:
 
 def write_data(path: Path, bedh: float, depth: float, d: float, length: float, xblade: float,
                thickness_d: int, topfac: float, seed: int, rho: float = 2500.0) -> dict:
-    """Writes the data file (atom_style sphere: id type diameter density x y z) both decks read.
-    Floor (type 2): frozen spheres of diameter d, square lattice FLOOR_SPACING d in x and z,
-    centres at y = -d/2. Blade (type 3): spheres of diameter d, density BLADE_DENSITY rho, in
-    the plane x = xblade, spacing BLADE_SPACING d in y (lowest centres at y = H + d) and
-    W/round(W/(BLADE_SPACING d)) in z, tall enough that, inserted to depth h, its top edge is
-    at least topfac h above y = H. Grains (type 1): diameters uniform in [0.9, 1.1] d, the
-    column collapse's loose lattice (LATTICE_SPACING, LATTICE_JITTER) between the walls,
-    without the sites that the blade would touch, for 1.08 * PHI_EST * length H W of grain
-    volume."""
+    """Writes the data file (atom_style sphere: id type diameter density x y z) both decks read:
+    the frozen floor, the blade above the bed and the grains to pour (tools/README.md, "dem_plough.py")."""
     rng = np.random.default_rng(seed)
     W = thickness_d * FLOOR_SPACING * d
     floor = slab_floor(length + 1.5 * d, thickness_d, d)      # inside the box, x < length + 2 d
@@ -102,21 +83,6 @@ def write_data(path: Path, bedh: float, depth: float, d: float, length: float, x
                   [("grains", 1, diam, rho, grains), ("floor", 2, d, rho, floor),
                    ("blade", 3, d, BLADE_DENSITY * rho, blade)], types=5)
     return dict(thickness=W, poured=len(grains), floor=len(floor), blade=len(blade), ytop=ytop)
-
-
-def bed_state(dump: dict, bedh: float, length: float, d: float, width: float) -> dict:
-    """Packing fraction (grain volume over box volume, grains counted by their centres) of the
-    settled bed away from the walls, floor and surface (2 d), and its mean surface height (the
-    mean over x bins of 2 d of the highest grain top)."""
-    g = dump["type"] == 1
-    x, y, r = dump["x"][g], dump["y"][g], dump["radius"][g]
-    lo, hi = 2 * d, bedh - 2 * d
-    inside = (x > 2 * d) & (x < length - 2 * d) & (y > lo) & (y < hi)
-    phi = float((4.0 / 3.0 * np.pi * r[inside] ** 3).sum() / ((length - 4 * d) * (hi - lo) * width))
-    bins = np.arange(0.0, length, 2 * d)
-    k = np.digitize(x, bins)
-    tops = [float((y + r)[k == i].max()) for i in range(1, len(bins)) if np.any(k == i)]
-    return dict(packing=phi, surface=float(np.mean(tops)))
 
 
 def steady_drag(drag: np.ndarray, x0: float, dist: float, window=WINDOW, nblocks: int = 4) -> dict:
@@ -179,23 +145,6 @@ class PloughResult:
         return s
 
 
-def hybrid_totals(log: str) -> dict:
-    """From the hybrid run's thermo table (hybrid_3d.lmp's thermo_style): the most material points
-    and continuum / hybrid cells over the drag, and the largest relative change of the total mass
-    f_couple[8] (grains' carried mass plus points). fix hybrid/mpm sums that total over all
-    atoms, its group or not (FixHybridMPM::grain_totals), so it also holds the floor and the
-    blade; their mass is constant, so the drift is still that of grains plus points."""
-    rows = logs.thermo_rows(log, require="f_couple[8]")
-    if not rows:
-        return {}
-    mass = np.array([r["f_couple[8]"] for r in rows])
-    good = mass > 0
-    return dict(points_max=int(max(r["f_couple[3]"] for r in rows)), mass_first=float(mass[good][0]) if good.any() else 0.0,
-                mass_drift=float(np.max(np.abs(mass[good] - mass[good][0])) / mass[good][0]) if good.any() else 0.0,
-                continuum_cells_max=int(max(r["f_couple[16]"] for r in rows)),
-                hybrid_cells_max=int(max(r["f_couple[17]"] for r in rows)))
-
-
 def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d: float = 0.002,
         drag: float | None = None, speed: float = 0.1, topfac: float = 0.25, thickness_d: int | None = None,
         np_: int = 1, out: str | Path | None = None, seed: int = 2024, timeout: float = 900,
@@ -221,7 +170,7 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
     log = done.check("in the drag", out / "final.dump", marker="PLOUGH drag end")
     settled = read_dump(out / "settled.dump")
     inserted = read_dump(out / "inserted.dump")
-    bed = bed_state(settled, bedh, geo["length"], d, data["thickness"])
+    bed = slab_bed(settled, bedh, geo["length"], d, data["thickness"])
     bl = inserted["type"] == 3
     lower_edge = float((inserted["y"][bl] - inserted["radius"][bl]).min())
     depth_actual = bed["surface"] - lower_edge
@@ -229,7 +178,7 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
     rec = logs.records(out / "drag.dat")    # fix ave/time: step, x_blade, F_x, F_y
     steady = steady_drag(rec, x0, drag)
     rho = float((extra_vars or {}).get("rho", 2500))
-    rankine = rankine_drag(bed["packing"] * rho, depth_actual) * data["thickness"]
+    rankine = rankine_drag(bed["packing"] * rho, depth_actual, PHI_BED) * data["thickness"]
     gm = (settled["type"] == 1) | (settled["type"] == 2)
     overlap = max_overlap({k: v[gm] for k, v in settled.items()}, d, data["thickness"])
     return PloughResult(
@@ -240,7 +189,7 @@ def run(code: str = "lammps", depth: float = 0.012, bedh: float | None = None, d
         packing=bed["packing"], surface=bed["surface"], depth_actual=depth_actual,
         blade_top=float((inserted["y"][bl] + inserted["radius"][bl]).max()) - bed["surface"],
         max_overlap=overlap, wall_time=done.wall, params=logs.contact_params(log, "PLOUGH"),
-        hybrid=hybrid_totals(log) if code == "hybrid" else {}, rankine=rankine,
+        hybrid=logs.hybrid_totals(log) if code == "hybrid" else {}, rankine=rankine,
         curve=[(float(a - x0), float(-b)) for a, b in zip(rec[:, 1], rec[:, 2])],
         log=logs.lines(log, "PLOUGH "), **steady)
 

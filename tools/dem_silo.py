@@ -44,7 +44,6 @@ W > D + 30 d (Nedderman's conditions, quoted by Mankoc et al., Granular Matter 9
 """
 from __future__ import annotations
 
-import math
 import re
 import sys
 from dataclasses import dataclass
@@ -53,24 +52,15 @@ from pathlib import Path
 import numpy as np
 
 from hgtools import cli, logs
+from hgtools.bed import PACKING_MARGIN
 from hgtools.cache import Settled
 from hgtools.discharge import Discharge, measure
 from hgtools.grains import covered_fraction, dump_positions, max_overlap, read_dump
+from hgtools.laws import BEVERLOO_C2D, BEVERLOO_K, beverloo_2d  # C: the free-fall arch (see above)
 from hgtools.runner import Forms, workdir
 
 FORMS = Forms("silo", lammps="dem_2d.lmp", liggghts=None, hybrid="hybrid_2d.lmp")
 DECK = FORMS.deck("lammps")
-
-G = 9.81
-BEVERLOO_C2D = math.pi / 4   # free-fall arch with Janda et al. 2012's outlet profiles (see above)
-BEVERLOO_K = 1.5             # docs/design.md section 6
-PACKING_MARGIN = 3.0         # the packing fraction is measured this many d from walls, floor, top
-
-
-def beverloo_2d(rho_b: float, orifice: float, d: float, c: float = BEVERLOO_C2D,
-                k: float = BEVERLOO_K, g: float = G) -> float:
-    """2D Beverloo rate W = C rho_b sqrt(g) (D - k d)^(3/2), kg/s per m of depth."""
-    return c * rho_b * math.sqrt(g) * max(orifice - k * d, 0.0) ** 1.5
 
 
 @dataclass(kw_only=True)

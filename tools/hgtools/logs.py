@@ -110,3 +110,32 @@ def ledger_closure(rows: list[dict]) -> float:
         scale = max(start, *(abs(v) for k, v in e.items() if k != "residual"))
         worst = max(worst, abs(e["residual"]) / scale if scale > 0 else 0.0)
     return worst
+
+
+def hybrid_totals(log: str) -> dict:
+    """From a hybrid run's thermo table (hybrid_3d.lmp's thermo_style): the most material points
+    and continuum / hybrid cells, and the largest relative change of the total mass f_couple[8]
+    (grains' carried mass plus points). fix hybrid/mpm sums that total over all atoms, its group
+    or not (FixHybridMPM::grain_totals), so it also holds frozen bodies (floor, blade); their mass
+    is constant, so the drift is still that of grains plus points."""
+    rows = thermo_rows(log, require="f_couple[8]")
+    if not rows:
+        return {}
+    mass = np.array([r["f_couple[8]"] for r in rows])
+    good = mass > 0
+    return dict(points_max=int(max(r["f_couple[3]"] for r in rows)), mass_first=float(mass[good][0]) if good.any() else 0.0,
+                mass_drift=float(np.max(np.abs(mass[good] - mass[good][0])) / mass[good][0]) if good.any() else 0.0,
+                continuum_cells_max=int(max(r["f_couple[16]"] for r in rows)),
+                hybrid_cells_max=int(max(r["f_couple[17]"] for r in rows)))
+
+
+def hybrid_mass_lines(text: str) -> tuple[float, int, int]:
+    """From the lines `HYBRID mass M points P cells continuum C hybrid H` a deck prints: the
+    largest |M(t) - M(0)| / M(0), the most points and the most continuum + hybrid cells
+    ((nan, 0, 0) without such lines)."""
+    rows = re.findall(r"^HYBRID mass (\S+) points (\S+) cells continuum (\S+) hybrid (\S+)", text, re.M)
+    if not rows:
+        return float("nan"), 0, 0
+    masses = [float(r[0]) for r in rows]
+    return (max(abs(m - masses[0]) for m in masses) / masses[0], int(max(float(r[1]) for r in rows)),
+            int(max(float(r[2]) + float(r[3]) for r in rows)))
