@@ -98,7 +98,7 @@ def test_hdf5_output_on_a_full_disk_is_a_clear_error_not_a_segfault(hybrid_progr
 @pytest.mark.parametrize("name", ["kill_mpm_np2_0", "kill_lammps_np2_0"])
 def test_kill_9_of_either_side_stops_both_within_10_s_with_files_readable(hybrid_programs, tmp_path, name):
     row = run(name, tmp_path)
-    assert row["outcome"] == "stopped_both", row
+    assert row["outcome"] == "stopped_both", row["message"]
     assert row["seconds_to_exit"] <= fc.KILL_LIMIT, row
     assert "exited on signal 9 (Killed)" in row["message"], row
     assert re.search(r"restart\.\d+\.bin ok; its \.mpm\.h5 ok; points\.h5 ok", row["message"]), row
