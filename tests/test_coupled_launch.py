@@ -12,7 +12,6 @@ import re
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -20,6 +19,7 @@ import numpy as np
 import pytest
 
 from conftest import BUILD, REPO
+from hgtools.runner import BackgroundJob
 
 DECK = REPO / "input_decks" / "hybrid" / "handshake.lmp"
 # the wire protocol version both sides were built with (coupler/include/coupler/version.hpp)
@@ -592,37 +592,19 @@ def test_mpm_solver_in_an_mpmd_job_without_coupled_refuses(tmp_path, hybrid_prog
 
 
 # -------------------------------------------------------------- peer death and hangs
-class Job:
+class Job(BackgroundJob):
     """A coupled job in the background; its output collected by a thread."""
 
     def __init__(self, tmp_path: Path, *vars_: str, np_: int = 2):
         self.deck = deck_copy(tmp_path)
-        args = [sys.executable, str(LAUNCH), "-np", str(np_), str(self.deck), "-log", "none",
-                "-var", "nsteps", "100000000", *vars_]
-        self.proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env(),
-                                     start_new_session=True)
-        self.lines: list[str] = []
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
-
-    def _read(self):
-        for line in self.proc.stdout:
-            self.lines.append(line)
-
-    @property
-    def text(self) -> str:
-        return "".join(self.lines)
+        super().__init__([sys.executable, str(LAUNCH), "-np", str(np_), str(self.deck), "-log", "none",
+                          "-var", "nsteps", "100000000", *vars_], env=env())
 
     def wait_for(self, pattern: str, timeout: float = 60) -> re.Match:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            m = re.search(pattern, self.text)
-            if m:
-                return m
-            if self.proc.poll() is not None and not self.reader.is_alive():
-                break
-            time.sleep(0.05)
-        raise AssertionError(f"no '{pattern}' in the output:\n{self.text}")
+        m = super().wait_for(pattern, timeout)
+        if m is None:
+            raise AssertionError(f"no '{pattern}' in the output:\n{self.text}")
+        return m
 
     def running(self) -> int:
         """Waits until both sides are coupled and exchanging; returns the mpm_solver pid."""
@@ -649,18 +631,11 @@ class Job:
 
     def finish(self, timeout: float) -> tuple[int, float]:
         t0 = time.monotonic()
-        try:
-            rc = self.proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
+        rc = self.wait(timeout)
+        if rc is None:
             self.kill()
             raise AssertionError(f"the job did not stop within {timeout} s:\n{self.text}")
-        self.reader.join(timeout=10)
         return rc, time.monotonic() - t0
-
-    def kill(self):
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            self.proc.wait(timeout=30)
 
 
 def alive(pid: int) -> bool:

@@ -32,12 +32,13 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
+
+from hgtools.runner import BackgroundJob
 
 REPO = Path(__file__).resolve().parent.parent
 BUILD = Path(os.environ.get("HYBRID_BUILD_DIR", REPO / "build"))
@@ -602,51 +603,6 @@ def program_pids(marker: str, name: str) -> list[int]:
     return out
 
 
-class Job:
-    def __init__(self, cmd: list[str], cwd: Path, env: dict):
-        self.t0 = time.monotonic()
-        self.proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                     text=True, errors="replace", start_new_session=True)
-        self.lines: list[str] = []
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
-
-    def _read(self):
-        for line in self.proc.stdout:
-            self.lines.append(line)
-
-    @property
-    def text(self) -> str:
-        return "".join(self.lines)
-
-    def wait_for(self, pattern: str, timeout: float) -> re.Match | None:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            m = re.search(pattern, self.text)
-            if m or self.proc.poll() is not None:
-                return m
-            time.sleep(0.02)
-        return None
-
-    def wait(self, timeout: float) -> int | None:
-        try:
-            rc = self.proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            return None
-        self.reader.join(timeout=5)
-        return rc
-
-    def kill(self):
-        try:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        try:
-            self.proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            pass
-
-
 AND = r"[\s\S]*"   # in an expected pattern: "and, anywhere in the output (either program may print first)"
 
 
@@ -713,7 +669,7 @@ def run_case_raw(case: Case, ctx: Ctx, timeout: float) -> dict:
 
 def run_command(case: Case, ctx: Ctx, cmd: list[str], env: dict, marker: str, timeout: float) -> dict:
     (ctx.dir / "command.txt").write_text(" ".join(cmd) + "\n")
-    job = Job(cmd, ctx.dir, env)
+    job = BackgroundJob(cmd, ctx.dir, env)
     rc = job.wait(timeout)
     elapsed = time.monotonic() - job.t0
     if rc is None:
@@ -790,7 +746,8 @@ def readable_files(ctx: Ctx) -> tuple[bool, str]:
 def kill_trial(case: Case, ctx: Ctx, env: dict, marker: str, timeout: float) -> dict:
     t = case.trial
     rng = random.Random(t["seed"])
-    job = Job(ctx.launch(kill_deck(ctx), "-var", "nsteps", "100000000", np_=t["np"], mpm_timeout=60), ctx.dir, env)
+    job = BackgroundJob(ctx.launch(kill_deck(ctx), "-var", "nsteps", "100000000", np_=t["np"], mpm_timeout=60),
+                        ctx.dir, env)
     try:
         if job.wait_for(r"mpm_solver: handshake ok", 60) is None:
             job.kill()

@@ -20,8 +20,10 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -151,3 +153,59 @@ class Forms:
     def run(self, code: str, variables: dict, log: Path, hybrid_vars: dict | None = None, **kwargs) -> Run:
         """run_deck of `code`'s form with these variables (kwargs: np_, exe, timeout, cwd, threads)."""
         return run_deck(code, self.deck(code), self.variables(code, variables, hybrid_vars), log, **kwargs)
+
+
+class BackgroundJob:
+    """A job (e.g. a coupled mpirun) running in its own process group while the caller watches
+    its merged output, which a thread collects line by line: for kill trials and for waiting
+    on a message before acting."""
+
+    def __init__(self, cmd: list, cwd: Path | None = None, env: dict | None = None):
+        self.t0 = time.monotonic()
+        self.proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                     text=True, errors="replace", start_new_session=True)
+        self.lines: list[str] = []
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.lines.append(line)
+
+    @property
+    def text(self) -> str:
+        return "".join(self.lines)
+
+    def wait_for(self, pattern: str, timeout: float) -> re.Match | None:
+        """The first match of `pattern` in the output, or None once the job has ended (and all
+        its output is read) or `timeout` s have passed."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            m = re.search(pattern, self.text)
+            if m:
+                return m
+            if self.proc.poll() is not None and not self.reader.is_alive():
+                return None
+            time.sleep(0.02)
+        return None
+
+    def wait(self, timeout: float) -> int | None:
+        """The exit status, all output read; None if the job is still running after `timeout` s."""
+        try:
+            rc = self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return None
+        self.reader.join(timeout=10)
+        return rc
+
+    def kill(self):
+        """SIGKILL to the whole process group (mpirun and every program it started, also
+        those left behind by an mpirun that has already exited)."""
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        try:
+            self.proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            pass
