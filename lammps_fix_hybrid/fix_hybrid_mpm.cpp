@@ -21,6 +21,7 @@
 #include "comm.h"
 #include "compute.h"
 #include "error.h"
+#include "group.h"
 #include "memory.h"
 #include "modify.h"
 #include "output.h"
@@ -220,6 +221,15 @@ void FixHybridMPM::connect()
 {
   grain_defaults();
   if (opt->material) apply_material();
+  // the grid: the fix line's cell, or one chosen from the grains (and the oracle's defaults from it)
+  try {
+    const bool sized = group->count(igroup) > 0 || opt->diameter_given;    // else no size to choose from
+    const std::string grid =
+        coupler::resolve_grid(*opt, domain->dimension, sized ? opt->continuum.grain_diameter : 0.0);
+    if (comm->me == 0) utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {}\n", grid));
+  } catch (const coupler::OptionError &e) {
+    illegal(e.what());
+  }
   // With cells under 2 grain diameters the oracle's packing fraction per cell counts one or two
   // grains and a cell's rests land on a few points: a published 2D collapse with 1.74 d cells
   // went non-finite as its continuum shrank (issue 14), while the same scene ran with 5 d cells.

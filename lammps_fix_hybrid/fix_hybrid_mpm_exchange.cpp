@@ -293,7 +293,9 @@ void FixHybridMPM::write_restart(FILE *fp)
 void FixHybridMPM::restart(char *buf)
 {
   double *list = (double *) buf;
-  if (list[0] != opt->cell && comm->me == 0)
+  // a cell the grains chose is the one the run started with (the grains have changed since)
+  if (opt->cell <= 0.0) opt->cell = list[0];
+  else if (list[0] != opt->cell && comm->me == 0)
     error->warning(FLERR, fmt::format("Fix hybrid/mpm: restart file has cell {}, the input says {}; using {}",
                                       list[0], opt->cell, opt->cell));
   restart_exchanges = static_cast<bigint>(list[1]);

@@ -103,6 +103,25 @@ def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid
     assert end["rezones (grains)"] != 0 and end["rezones (continuum)"] != 0, end
 
 
+def test_grid_chosen_from_the_grains_makes_coarse_points(tmp_path, hybrid_programs):
+    """Without `cell` the fix chooses the grid from the grains (docs/fix_hybrid_mpm.md, "Grid from
+    the grains"): with one point per cell and axis, cells of 3 grain diameters, so that a point
+    stands for about 9 grains, and the oracle's depth and band from that cell. The conversion
+    makes one point per continuum or hybrid cell, from the 9 lattice grains of each, and the
+    handoffs keep their totals as with a given cell."""
+    log = run_deck(tmp_path, DECKS["2d"], 1, "-var", "nsteps", "60", "-var", "cell", "0", "-var", "ppc", "1")
+    assert ("fix hybrid/mpm: cell 0.006 = 3 mean grain diameters (chosen from the grains), 1^2 points per cell: "
+            "a point made from grains carries 9.4 grains at packing 0.82") in log, log
+    first = rezone_lines(log)[0]
+    assert first["continuum_cells"] > 0 and first["hybrid_cells"] > 0, first
+    # one point per cell that holds material points (continuum and hybrid cells)
+    assert first["points"] == first["continuum_cells"] + first["hybrid_cells"], first
+    # a continuum cell's 9 grains become its point; a hybrid cell's grains stay (weight 0.5)
+    assert first["deleted"] == 9 * first["continuum_cells"], first
+    for c, t in zip(*rezones(log)):
+        assert np.abs(t[:, 1] - t[:, 0]).max() <= 1e-12 * np.abs(t).max(), c
+
+
 def test_rezone_log_sums_the_rezones_at_thermo_output(tmp_path, hybrid_programs):
     """The rezone log (keyword rezone_log) of the 2D patch, 120 steps on 1 rank (oracle every 20
     steps, thermo every 10). Full: every rezone prints its lines, and at each thermo output that

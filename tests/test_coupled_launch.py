@@ -121,7 +121,7 @@ def test_launcher_composes_both_routes(tmp_path, hybrid_programs, hybrid_plugin)
 @pytest.mark.parametrize("fix_args, message", [
     ("cell 0.01 bogus 3", "unknown keyword 'bogus'"),
     ("cell -0.01", "keyword 'cell' must be > 0"),
-    ("model drucker_prager", "keyword 'cell' (the MPM grid cell size) is required"),
+    ("cell 0.01 points_per_cell 5", "keyword 'points_per_cell' (points per cell and axis) must be 1 to 4"),
     ("cell 0.01 model granite", "keyword 'model' must be drucker_prager or mu_i, not 'granite'"),
     ("cell 0.01 timeout", "keyword 'timeout' needs a value"),
     ("cell 0.01 every 0", "keyword 'every' needs a positive integer"),

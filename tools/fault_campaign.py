@@ -162,7 +162,7 @@ def bad_fix_cases() -> list[Case]:
         ("fix_unknown_keyword", "cell 0.01 bogus 3", "unknown keyword 'bogus'"),
         ("fix_keyword_typo", "cell 0.01 evrey 10", "unknown keyword 'evrey'"),
         ("fix_cell_negative", "cell -0.01", r"keyword 'cell' must be > 0"),
-        ("fix_cell_missing", "model drucker_prager", r"keyword 'cell' \(the MPM grid cell size\) is required"),
+        ("fix_cell_zero", "cell 0", r"keyword 'cell' must be > 0 \(the MPM grid cell size\), not 0"),
         ("fix_cell_not_a_number", "cell abc", r"cell"),
         ("fix_model_unknown", "cell 0.01 model granite", "keyword 'model' must be drucker_prager or mu_i"),
         ("fix_every_zero", "cell 0.01 every 0", "keyword 'every' needs a positive integer"),
@@ -556,7 +556,7 @@ def kill_cases(trials: int, quick_trials: int) -> list[Case]:
         for np_ in (1, 2):
             for k in range(trials):
                 out.append(Case(f"kill_{side}_np{np_}_{k}", "kill",
-                                f"kill -9 the {'MPM process' if side == 'mpm' else 'a LAMMPS rank'} at a random step "
+                                f"kill -9 {'the MPM process' if side == 'mpm' else 'a LAMMPS rank'} at a random step "
                                 f"({np_} LAMMPS rank(s))",
                                 r"exited on signal 9 \(Killed\)" + AND +
                                 r"hybrid_launch: the coupled job failed .*, rank "

@@ -6,6 +6,7 @@
 
 #include "coupler/oracle.hpp"
 #include "coupler/text.hpp"
+#include "coupler/tuning.hpp"
 
 namespace coupler {
 namespace {
@@ -67,7 +68,8 @@ bool set_oracle_option(OracleSettings &oracle, const std::string &key, const std
 }
 
 void check_oracle_options(FixOptions &o, int dimension) {
-  if (!o.adaptive()) return;
+  // without a cell yet (it comes from the grains, resolve_grid) the defaults and checks wait
+  if (!o.adaptive() || o.cell <= 0.0) return;
   // Defaults: continuum three cells below surfaces and walls, a hybrid band one cell wide on either side.
   if (o.oracle.band <= 0.0) o.oracle.band = o.cell;
   if (o.oracle.continuum_depth <= 0.0) o.oracle.continuum_depth = 3.0 * o.cell;
@@ -80,6 +82,60 @@ void check_oracle_options(FixOptions &o, int dimension) {
   if (!(o.oracle.continuum_depth > o.oracle.band))
     illegal("keyword 'depth' (" + shortest(o.oracle.continuum_depth) + ") must exceed 'band' (" +
             shortest(o.oracle.band) + "): the cells at the free surface must stay discrete");
+}
+
+namespace {
+
+// grains of unit diameter per material point in a cell `cell_in_grains` diameters wide
+double grains_per_point(int dimension, double cell_in_grains, double packing, int points_per_axis) {
+  constexpr double kPi = 3.14159265358979323846;
+  const double grain_volume = dimension == 2 ? kPi / 4.0 : kPi / 6.0;
+  return packing * std::pow(cell_in_grains, dimension) /
+         (grain_volume * std::pow(static_cast<double>(points_per_axis), dimension));
+}
+
+}    // namespace
+
+GrainGrid grid_from_grains(int dimension, double grain_diameter, double packing, int points_per_axis) {
+  // grains per point grow as cell^dimension: the cell that gives one, scaled up
+  const double least = std::pow(kGrainsPerPoint / grains_per_point(dimension, 1.0, packing, points_per_axis),
+                                1.0 / dimension);
+  const double cell_in_grains = std::max(kSmallestCellInGrains, std::ceil(2.0 * least - 1e-9) / 2.0);
+  GrainGrid g;
+  g.cell = cell_in_grains * grain_diameter;
+  g.points_per_axis = points_per_axis;
+  g.grains_per_point = grains_per_point(dimension, cell_in_grains, packing, points_per_axis);
+  return g;
+}
+
+double grid_packing(const FixOptions &o, int dimension) {
+  if (o.material && o.material->packing_fraction > 0.0) return o.material->packing_fraction;
+  return dimension == 2 ? 0.82 : 0.60;
+}
+
+std::string resolve_grid(FixOptions &o, int dimension, double grain_diameter) {
+  ContinuumSettings &c = o.continuum;
+  if (!(grain_diameter > 0.0)) {
+    if (o.cell <= 0.0) illegal("keyword 'cell' is needed: the group has no grains to choose the MPM grid cell from");
+    check_oracle_options(o, dimension);
+    return "cell " + general(o.cell, 6);
+  }
+  const double packing = grid_packing(o, dimension);
+  std::string chosen;
+  if (o.cell <= 0.0) {
+    const int per_axis = o.points_given ? c.points_per_axis : kPointsPerAxis;
+    const GrainGrid g = grid_from_grains(dimension, grain_diameter, packing, per_axis);
+    o.cell = g.cell;
+    c.points_per_axis = g.points_per_axis;
+    chosen = " (chosen from the grains)";
+  }
+  check_oracle_options(o, dimension);
+  const double in_grains = o.cell / grain_diameter;
+  return "cell " + general(o.cell, 6) + " = " + general(in_grains, 3) + " mean grain diameters" + chosen + ", " +
+         std::to_string(c.points_per_axis) + "^" + std::to_string(dimension) +
+         " points per cell: a point made from grains carries " +
+         general(grains_per_point(dimension, in_grains, packing, c.points_per_axis), 3) + " grains at packing " +
+         general(packing, 3);
 }
 
 RezoneLog rezone_log_option(const std::string &value) {
@@ -184,6 +240,7 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
                               "not ");
     else if (key == "points_per_cell") {
       c.points_per_axis = integer(key, val);
+      o.points_given = true;
       if (c.points_per_axis > 4) illegal("keyword 'points_per_cell' (points per cell and axis) must be 1 to 4");
     } else if (key == "inertia") o.inertia = positive(key, val, "I = inertia m r^2");
     else if (key == "output") {
@@ -218,7 +275,6 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
       illegal("unknown keyword '" + key + "' (known keywords: " + kKeywords + ")");
     iarg += used;
   }
-  if (o.cell <= 0.0) illegal("keyword 'cell' (the MPM grid cell size) is required");
   if (o.material && !constants_given.empty())
     illegal("keyword '" + constants_given.front() + "' conflicts with 'material', which sets the continuum's "
             "constants from the calibration; leave one out");

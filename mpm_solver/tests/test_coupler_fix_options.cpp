@@ -2,6 +2,7 @@
 // message of every kind of bad line (the fix prints it after "Illegal fix hybrid/mpm command: ").
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <sstream>
 
 #include "coupler/fix_options.hpp"
@@ -102,7 +103,7 @@ TEST(FixOptions, BadLinesNameTheKeyword) {
   // the messages tests/test_coupled_launch.py expects from LAMMPS, and others
   EXPECT_EQ(error_of("cell 0.01 bogus 3").rfind("unknown keyword 'bogus' (known keywords: cell, continuum, ", 0), 0u);
   EXPECT_EQ(error_of("cell -0.01"), "keyword 'cell' must be > 0 (the MPM grid cell size), not -0.01");
-  EXPECT_EQ(error_of("model drucker_prager"), "keyword 'cell' (the MPM grid cell size) is required");
+  EXPECT_EQ(error_of("model drucker_prager"), "(no error)");    // the cell then comes from the grains
   EXPECT_EQ(error_of("cell 0.01 model granite"), "keyword 'model' must be drucker_prager or mu_i, not 'granite'");
   EXPECT_EQ(error_of("cell 0.01 timeout"), "keyword 'timeout' needs a value");
   EXPECT_EQ(error_of("cell 0.01 every 0"), "keyword 'every' needs a positive integer, not '0'");
@@ -159,3 +160,74 @@ TEST(FixOptions, BadLinesNameTheKeyword) {
 }
 
 }    // namespace
+
+namespace {
+
+std::string resolve_error(coupler::FixOptions o, int dimension, double diameter) {
+  try {
+    coupler::resolve_grid(o, dimension, diameter);
+  } catch (const coupler::OptionError &e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}    // namespace
+
+TEST(FixOptions, GrainsChooseCellsOfAtLeastEightGrainsPerPoint) {
+  // 2D: disks at 0.82, 4 points per cell: cell^2 >= 8 * 4 * (pi/4) / 0.82 = 30.6 d^2, 6 d in half diameters
+  auto g = coupler::grid_from_grains(2, 0.002, 0.82, 2);
+  EXPECT_DOUBLE_EQ(g.cell, 0.012);
+  EXPECT_EQ(g.points_per_axis, 2);
+  EXPECT_NEAR(g.grains_per_point, 0.82 * 36.0 / (3.14159265358979 / 4.0 * 4.0), 1e-12);
+  EXPECT_GE(g.grains_per_point, 8.0);
+  // 3D: spheres at 0.60, 8 points per cell: cell^3 >= 55.9 d^3, 4 d
+  g = coupler::grid_from_grains(3, 0.001, 0.60, 2);
+  EXPECT_DOUBLE_EQ(g.cell, 0.004);
+  EXPECT_NEAR(g.grains_per_point, 0.60 * 64.0 / (3.14159265358979 / 6.0 * 8.0), 1e-12);
+  // one point per cell and axis: 3 d in 2D; in 3D the 2 d floor of adaptive zones (9.2 grains)
+  EXPECT_DOUBLE_EQ(coupler::grid_from_grains(2, 1.0, 0.82, 1).cell, 3.0);
+  EXPECT_DOUBLE_EQ(coupler::grid_from_grains(3, 1.0, 0.60, 1).cell, 2.0);
+  // every choice carries at least the target, and half a diameter less would not
+  for (int dim : {2, 3})
+    for (int ppa : {1, 2, 3, 4})
+      for (double packing : {0.55, 0.64, 0.82, 0.9}) {
+        const auto c = coupler::grid_from_grains(dim, 1.0, packing, ppa);
+        EXPECT_GE(c.grains_per_point, 8.0 - 1e-9);
+        if (c.cell > 2.0)
+          EXPECT_LT(coupler::grid_from_grains(dim, 1.0, packing, ppa).grains_per_point *
+                        std::pow((c.cell - 0.5) / c.cell, dim), 8.0);
+      }
+}
+
+TEST(FixOptions, ResolveGridFillsTheCellAndTheOracleDefaults) {
+  auto o = parse("adaptive 100 every 10");
+  EXPECT_LE(o.cell, 0.0);
+  EXPECT_LE(o.oracle.band, 0.0);    // waits for the cell
+  const std::string line = coupler::resolve_grid(o, 2, 0.002);
+  EXPECT_DOUBLE_EQ(o.cell, 0.012);
+  EXPECT_EQ(o.continuum.points_per_axis, 2);
+  EXPECT_DOUBLE_EQ(o.oracle.band, 0.012);
+  EXPECT_DOUBLE_EQ(o.oracle.continuum_depth, 0.036);
+  EXPECT_NE(line.find("cell 0.012 = 6 mean grain diameters (chosen from the grains), 2^2 points per cell: "
+                      "a point made from grains carries 9.4 grains at packing 0.82"), std::string::npos) << line;
+  // points per cell given: the cell follows them
+  o = parse("adaptive 100 every 10 points_per_cell 1");
+  coupler::resolve_grid(o, 2, 0.002);
+  EXPECT_DOUBLE_EQ(o.cell, 0.006);
+  EXPECT_EQ(o.continuum.points_per_axis, 1);
+  // a cell on the line (or restored from a restart file) is kept, and so are the 2 points
+  o = parse("cell 0.005 adaptive 100 every 10");
+  EXPECT_NE(coupler::resolve_grid(o, 2, 0.002).find("cell 0.005 = 2.5 mean grain diameters, 2^2 points per cell: "
+                                                     "a point made from grains carries 1.63 grains"),
+            std::string::npos);
+  EXPECT_DOUBLE_EQ(o.cell, 0.005);
+  // a band given on the line is checked against the chosen cell
+  EXPECT_EQ(resolve_error(parse("adaptive 100 every 10 band 0.004"), 2, 0.002),
+            "keyword 'band' (0.004) must exceed 0.008485 (sqrt(2)/2 cells), or continuum cells may border discrete "
+            "ones");
+  // no grains and no cell: nothing to choose from
+  EXPECT_EQ(resolve_error(parse("adaptive 100 every 10"), 2, 0.0),
+            "keyword 'cell' is needed: the group has no grains to choose the MPM grid cell from");
+  EXPECT_EQ(resolve_error(parse("cell 0.01"), 3, 0.0), "(no error)");
+}

@@ -24,7 +24,7 @@ struct OptionError : std::invalid_argument {
 
 /// Every keyword's value, at its default unless the fix line gave it.
 struct FixOptions {
-  double cell = -1.0;             ///< MPM grid cell size, m (required)
+  double cell = -1.0;             ///< MPM grid cell size, m (<= 0 until chosen from the grains)
   double reply_timeout = 30.0;    ///< s the DEM side waits for each reply of the MPM process
   double idle_timeout = 600.0;    ///< s the MPM process waits for the next message (0 = forever)
   int model = kModelDruckerPrager;
@@ -43,6 +43,7 @@ struct FixOptions {
   std::optional<CalibratedMaterial> material;    ///< keyword material (none: constants from the line)
   bool diameter_given = false, density_given = false;    ///< mu(I) grain size and density given
   bool pic_given = false;
+  bool points_given = false;      ///< keyword points_per_cell given
   bool container_given[6] = {false, false, false, false, false, false};    ///< xlo xhi ylo yhi zlo zhi
   double container_value[6] = {0, 0, 0, 0, 0, 0};
   double warn_steps_per_contact = kWarnStepsPerContact;    ///< keyword steps_per_contact
@@ -75,6 +76,28 @@ bool set_oracle_option(OracleSettings &oracle, const std::string &key, const std
 /// The oracle's defaults from the cell (depth 3 cells, band 1) and the checks between its
 /// values; nothing without adaptive zones. Throws OptionError.
 void check_oracle_options(FixOptions &options, int dimension);
+
+/// The grid the grains choose when the fix line gives no `cell` (docs/design.md section 5.1):
+/// `points_per_axis` points per cell and axis (kPointsPerAxis unless given) and the cell, in
+/// whole and half grain diameters, the smallest that gives each point at least kGrainsPerPoint
+/// grains of diameter `grain_diameter` at the packing fraction `packing`, and at least
+/// kSmallestCellInGrains diameters.
+struct GrainGrid {
+  double cell = 0.0;
+  int points_per_axis = 0;
+  double grains_per_point = 0.0;    ///< at `packing`
+};
+GrainGrid grid_from_grains(int dimension, double grain_diameter, double packing, int points_per_axis);
+
+/// The packing fraction a material point is made at: the calibrated material's, else a dense
+/// random packing of disks (0.82) or spheres (0.60).
+double grid_packing(const FixOptions &options, int dimension);
+
+/// Completes the options once the grains are known: without `cell` on the fix line the cell and
+/// the points per cell come from the grains' mean diameter (grid_from_grains; a cell restored
+/// from a restart file is kept), then the oracle's defaults that follow from the cell. Returns
+/// the line that says what was chosen and how many grains a point carries. Throws OptionError.
+std::string resolve_grid(FixOptions &options, int dimension, double grain_diameter);
 
 /// rezone_log's value (OptionError for another).
 RezoneLog rezone_log_option(const std::string &value);

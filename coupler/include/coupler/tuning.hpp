@@ -24,4 +24,15 @@ inline constexpr double kSmallestShrink = 0.8;
 /// issue 14, while the same scene ran with 5 d cells).
 inline constexpr double kSmallestCellInGrains = 2.0;
 
+/// The least number of grains a material point made from grains should carry when the fix line
+/// leaves the grid to the grains (no `cell`): the continuum pays off only where it is much coarser
+/// than the grains it replaces (issue 15: at 1.3 grains per point a 15,000-disk silo's continuum
+/// cost almost what its grains did). With 2 points per cell and axis this gives cells of 6 d in 2D
+/// and 4 d in 3D (docs/design.md section 5.1).
+inline constexpr double kGrainsPerPoint = 8.0;
+
+/// Points per cell and axis when the fix line gives none: 2 is the usual quadrature of MPM with
+/// quadratic B-splines (one point per cell and axis leaves cells empty as the material shears).
+inline constexpr int kPointsPerAxis = 2;
+
 }  // namespace coupler
