@@ -105,6 +105,28 @@ OPEN_RE = re.compile(r"^DEM silo open: .*, grains (\d+), mass (\S+) kg/m, in the
                      re.M)
 
 
+def prepare_silo(width: float, height: float, d: float = 0.002, seed: int = 12345, out: str | Path | None = None,
+                 use_cache: bool = True, cache_dir: str | Path | None = None, np_: int = 1, lmp: str = "lmp",
+                 timeout: float = 3600, extra: dict | None = None) -> tuple[Path, dict, bool]:
+    """The settled silo (orifice closed): (its restart file, the preparation's figures, whether it
+    was prepared now), from the cache unless use_cache is False or it is not there yet."""
+    extra = {k: str(v) for k, v in (extra or {}).items()}
+    cache = settled(width, height, d, seed, extra, cache_dir)
+    if use_cache and cache.cached(with_info=True):
+        return cache.path, cache.info(), False
+    out = workdir(out, f"dem_silo_w{width:g}")
+    target = out / "settled.restart"
+    done = FORMS.run("lammps", dict(width=width, height=height, d=d, seed=seed, out=str(out), settled=str(target),
+                                    prep=1, discharge=0, **extra), out / "log.prep.lammps",
+                     np_=np_, exe=lmp, timeout=timeout)
+    m = done.match("to prepare the silo", SETTLED_RE, target)
+    info = dict(settle_time=float(m.group(1)), grains=int(m.group(2)), mass=float(m.group(3)),
+                trimmed_mass=float(m.group(4)), below=int(m.group(5)), wall_time=done.wall)
+    if use_cache:
+        cache.store(target, info)
+    return target, info, True
+
+
 def run_dem_silo(width: float = 0.1, height: float = 0.15, orifice: float = 0.02, d: float = 0.002,
                  np_: int = 1, out: str | Path | None = None, seed: int = 12345, use_cache: bool = True,
                  cache_dir: str | Path | None = None, tdis: float = 1.0, fstop: float = 0.9,
@@ -117,22 +139,9 @@ def run_dem_silo(width: float = 0.1, height: float = 0.15, orifice: float = 0.02
     (hcell, hevery, hadapt, hdepth, hband, hyoungs, hphi); the settled silo is the DEM one."""
     extra = {k: str(v) for k, v in (extra_vars or {}).items()}
     out = workdir(out, f"dem_silo_w{width:g}_D{orifice:g}")
-    cache = settled(width, height, d, seed, extra, cache_dir)
-    prep = not (use_cache and cache.cached(with_info=True))
     common = dict(width=width, height=height, orifice=orifice, d=d, seed=seed, out=str(out), **extra)
     kw = dict(np_=np_, exe=lmp, timeout=timeout)
-    if prep:
-        # the settled silo first (orifice closed), then the discharge from it
-        target = out / "settled.restart"
-        done = FORMS.run("lammps", dict(common, settled=str(target), prep=1, discharge=0), out / "log.prep.lammps",
-                         **kw)
-        m = done.match("to prepare the silo", SETTLED_RE, target)
-        info = dict(settle_time=float(m.group(1)), grains=int(m.group(2)), mass=float(m.group(3)),
-                    trimmed_mass=float(m.group(4)), below=int(m.group(5)), wall_time=done.wall)
-        if use_cache:
-            cache.store(target, info)
-    else:
-        target, info = cache.path, cache.info()
+    target, info, prep = prepare_silo(width, height, d, seed, out, use_cache, cache_dir, np_, lmp, timeout, extra)
     code = "lammps" if hybrid_vars is None else "hybrid"
     done = FORMS.run(code, dict(common, settled=str(target), prep=0, tdis=tdis, fstop=fstop), out / "log.lammps",
                      hybrid_vars, **kw)

@@ -1,0 +1,195 @@
+#!/usr/bin/env python3
+"""Speed of the hybrid against pure LAMMPS DEM as the scene grows (issue 15), side by side in one
+invocation, with a cost model that predicts it.
+
+Scene: the deep 2D silo (input_decks/silo/dem_2d.lmp and its adaptive twin hybrid_2d.lmp), every
+length in grain diameters so that only the size changes between sizes: width W = n d, fill
+height H = 3 W, orifice D = 10 d, d = 2 mm (3 n^2 d^2 at 82 % packing holds about 3.1 n^2 disks:
+n = 40, 90, 160 give about 5k, 25k and 80k disks). Each size runs the discharge as pure
+DEM and as the hybrid from the same cached settled silo, on the same LAMMPS ranks; the hybrid's
+MPM process (OpenMP, default threads) runs only while LAMMPS waits for it, so both use the same
+cores. The hybrid uses the fix's grid from the grains (`hcell 0`: 6 d cells, 2x2 points, about
+9 disks per point) unless --hcell says otherwise.
+
+Measures, per size: the DEM's and the hybrid's wall times of the discharge (speedup = DEM over
+hybrid), the steady discharge rate of each (error = hybrid over DEM - 1), the continuum's share
+of the material (1 - the grains' carried mass over the total, f_couple[8], averaged over the
+thermo rows), and the hybrid's time ledger (entries 30-32: coupling, MPM wait, rezones).
+
+Cost model (docs/design.md section 7.3): a DEM step costs c_g per grain in LAMMPS (measured on
+this size's DEM run: its loop time over its grain-steps); the hybrid's step costs c_g per grain
+still in LAMMPS, plus the MPM process's c_p per point-substep (bench/results/mpm_throughput.json,
+2D, the threads it runs with) while LAMMPS waits, plus c_x per coupled grain and exchange
+(bench/results/coupling_overhead.json: the fix's cost per exchange, less its MPM substep, over its
+coupled grains).
+predicted speedup = T_DEM / (c_g * grain-steps + c_p * point-substeps + c_x * coupled grain-
+exchanges), all counts from the hybrid's own thermo rows. Where the measured speedup falls more
+than 20 % short of it, the rest is overhead the model does not hold (rezones, oracle, waiting).
+
+Usage: bench/scale_speed.py [--np 2] [--sizes 40,90,160] [--tdis 0.4] [--seed 12345]
+Writes bench/results/scale_speed.json (a list `rows`), scale_speed.md and scale_speed.png.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "tools"))
+from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
+from hgtools.logs import thermo_rows  # noqa: E402
+
+RESULTS = REPO / "bench" / "results"
+D = 0.002                     # grain diameter, m
+ORIFICE = 10                  # orifice width, d
+DEPTH = 3                     # fill height over width
+
+
+def silo_size(n: int) -> dict:
+    """The silo of width n d, in metres."""
+    return dict(width=n * D, height=DEPTH * n * D, orifice=ORIFICE * D, d=D)
+
+
+def mpm_point_cost(threads: int) -> float:
+    """s per point-substep of the 2D MPM at `threads` threads (bench/results/mpm_throughput.json)."""
+    rows = json.loads((RESULTS / "mpm_throughput.json").read_text())
+    best = [r for r in rows if r["dimension"] == 2 and r["threads"] == threads and "grid_nodes" in r]
+    return 1.0 / max(r["point_steps_per_second"] for r in best)
+
+
+def exchange_cost() -> float:
+    """s per coupled grain and exchange on the DEM side: the fix's cost per exchange in
+    bench/results/coupling_overhead.json (every 10), less its points' MPM substeps (one thread),
+    over its coupled grains."""
+    case = json.loads((RESULTS / "coupling_overhead.json").read_text())["summary"]["np1_coupled_every10"]
+    mpm = case["points"] * case["substeps_per_exchange"] * mpm_point_cost(1)
+    return (1e-3 * case["fix_ms_per_exchange"] - mpm) / case["coupled_grains"]
+
+
+def steps_weighted(rows: list[dict], key) -> float:
+    """Sum over the thermo intervals of (steps in the interval) x key(row at its end)."""
+    steps = np.diff([r["Step"] for r in rows])
+    return float(sum(s * key(r) for s, r in zip(steps, rows[1:])))
+
+
+def hybrid_ledger(log: Path, every: int) -> dict:
+    """The counts the cost model needs and the continuum's share, from the hybrid's thermo rows."""
+    rows = thermo_rows(log, require="f_couple[8]")
+    total = np.array([r["f_couple[8]"] for r in rows])
+    share = 1.0 - np.array([r["v_mgrains"] for r in rows]) / np.where(total > 0, total, 1.0)
+    return dict(
+        grain_steps=steps_weighted(rows, lambda r: r["v_ng"]),
+        point_substeps=steps_weighted(rows, lambda r: r["f_couple[3]"] * r["f_couple[6]"] / every),
+        coupled_exchanges=steps_weighted(rows, lambda r: r["f_couple[2]"] / every),
+        share_mean=float(share[1:].mean()), share_t=[r["Time"] for r in rows], share=share.tolist(),
+        points_max=int(max(r["f_couple[3]"] for r in rows)), coupling_s=rows[-1]["f_couple[30]"],
+        mpm_wait_s=rows[-1]["f_couple[31]"], rezone_s=rows[-1]["f_couple[32]"])
+
+
+def children_cpu() -> float:
+    """CPU seconds (user + system) of every finished child process and its descendants so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def timed(run, **kwargs):
+    """run(**kwargs) and the CPU seconds its processes used: on a shared machine the CPU time is
+    the steadier measure of the work (a descheduled process's wall time grows, its CPU time not)."""
+    before = children_cpu()
+    return run(**kwargs), children_cpu() - before
+
+
+def run_size(n: int, np_: int, tdis: float, seed: int, hcell: str, threads: int, work: Path) -> dict:
+    size = silo_size(n)
+    common = dict(**size, np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
+    prepare_silo(size["width"], size["height"], D, seed, work / f"prep_{n}", np_=np_, timeout=4 * 3600)  # cached
+    dem, dem_cpu = timed(run_dem_silo, out=work / f"dem_{n}", **common)
+    hyb, hyb_cpu = timed(run_dem_silo, out=work / f"hybrid_{n}", hybrid_vars={"hcell": hcell}, **common)
+    dem_rows = thermo_rows(work / f"dem_{n}" / "log.lammps", require="v_ng")
+    c_g = dem.loop_time / steps_weighted(dem_rows, lambda r: r["v_ng"])
+    led = hybrid_ledger(work / f"hybrid_{n}" / "log.lammps", every=10)
+    c_p, c_x = mpm_point_cost(threads), exchange_cost()
+    model = dict(grains=c_g * led["grain_steps"], points=c_p * led["point_substeps"],
+                 exchange=c_x * led["coupled_exchanges"])
+    predicted = dem.loop_time / sum(model.values())
+    row = dict(scene="silo_2d", grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=ORIFICE,
+               speedup=dem.wall_time / hyb.wall_time, loop_speedup=dem.loop_time / hyb.loop_time,
+               cpu_speedup=dem_cpu / hyb_cpu, dem_cpu_s=dem_cpu, hybrid_cpu_s=hyb_cpu,
+               predicted_speedup=predicted, error=hyb.rate / dem.rate - 1, runout_error=None,
+               continuum_share=led["share_mean"], cores=np_, lammps_ranks=np_, mpm_threads=threads,
+               dem_wall_s=dem.wall_time, hybrid_wall_s=hyb.wall_time, dem_loop_s=dem.loop_time,
+               hybrid_loop_s=hyb.loop_time, rate_dem=dem.rate, rate_hybrid=hyb.rate,
+               cost_per_grain_step_s=c_g, cost_per_point_substep_s=c_p, cost_per_coupled_grain_exchange_s=c_x,
+               model_s=model, coupling_s=led["coupling_s"], mpm_wait_s=led["mpm_wait_s"], rezone_s=led["rezone_s"],
+               points_max=led["points_max"], share_t=led["share_t"], share=led["share"], hcell=hcell)
+    print(f"silo W = {n} d: {dem.grains} grains, speedup {row['speedup']:.2f}x (model {predicted:.2f}x), rate "
+          f"{row['error']:+.1%}, continuum {row['continuum_share']:.0%}", flush=True)
+    return row
+
+
+def table(rows: list[dict]) -> list[str]:
+    out = ["| scene | W, H (d) | grains | continuum share (mean) | most points | DEM wall s | hybrid wall s | "
+           "speedup (wall) | speedup (CPU time) | predicted | rate error | coupling s (MPM wait, rezones) |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in rows:
+        out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']} | {r['grains']} | {r['continuum_share']:.0%} | "
+                   f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
+                   f"{r['cpu_speedup']:.2f}x | "
+                   f"{r['predicted_speedup']:.2f}x | {r['error']:+.1%} | {r['coupling_s']:.1f} "
+                   f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) |")
+    return out
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.2))
+    g = [r["grains"] for r in rows]
+    ax.plot(g, [r["speedup"] for r in rows], "o-", label="measured")
+    ax.plot(g, [r["predicted_speedup"] for r in rows], "s--", label="cost model")
+    for r in rows:
+        ax.annotate(f"rate {r['error']:+.1%}", (r["grains"], r["speedup"]), textcoords="offset points", xytext=(4, 6))
+    ax.axhline(1.0, color="grey", lw=0.8)
+    ax.set(xscale="log", xlabel="grains", ylabel="DEM wall time / hybrid wall time", title="2D deep silo")
+    ax.legend()
+    for r in rows:
+        bx.plot(r["share_t"], r["share"], label=f"{r['grains']} grains")
+    bx.set(xlabel="t since the opening (s)", ylabel="continuum share of the material", ylim=(0, 1))
+    bx.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--np", type=int, default=2, dest="np_", help="LAMMPS ranks, DEM and hybrid alike")
+    ap.add_argument("--threads", type=int, default=2, help="the MPM process's OpenMP threads (for the cost model)")
+    ap.add_argument("--sizes", default="40,90,160", help="silo widths in grain diameters")
+    ap.add_argument("--tdis", type=float, default=0.4, help="discharge time after the opening, s")
+    ap.add_argument("--seed", type=int, default=12345)
+    ap.add_argument("--hcell", default="0", help="the hybrid's cell, m, or 0 (the fix's, from the grains)")
+    ap.add_argument("--work", type=Path, default=REPO / "runs" / "scale_speed")
+    ap.add_argument("--out", type=Path, default=RESULTS / "scale_speed.md")
+    a = ap.parse_args()
+    rows = [run_size(int(n), a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work) for n in a.sizes.split(",")]
+    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    a.out.with_suffix(".json").write_text(json.dumps(dict(date=stamp, np=a.np_, rows=rows), indent=1))
+    plot(rows, a.out.with_suffix(".png"))
+    text = [f"# Hybrid against pure LAMMPS DEM as the scene grows", "",
+            f"`bench/scale_speed.py --np {a.np_} --sizes {a.sizes} --tdis {a.tdis} --hcell {a.hcell}`, {stamp}; "
+            f"{a.np_} LAMMPS rank(s) for DEM and hybrid alike, the hybrid's MPM process working while LAMMPS waits; "
+            "a 2-core machine shared with other work (wall times are noisy: compare ratios).", "",
+            *table(rows), "", "![speedup against size](scale_speed.png)", ""]
+    a.out.write_text("\n".join(text))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
