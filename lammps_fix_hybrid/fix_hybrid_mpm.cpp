@@ -30,6 +30,7 @@
 #include "version.h"
 
 #include "coupler/coupling_timer.hpp"
+#include "coupler/dem_coupling.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_session.hpp"
 #include "coupler/fix_options.hpp"
@@ -126,15 +127,10 @@ FixHybridMPM::~FixHybridMPM()
   delete[] stress_id;
   if (!link) return;
   // normal end of the coupled run (unfix, clear, end of input): the MPM process exits 0
-  try {
-    link->finish(last_step);
-    if (comm->me == 0)
-      utils::logmesg(lmp, fmt::format("fix hybrid/mpm: finished the coupled run after {} exchange(s)\n",
-                                      link->exchanges()));
-  } catch (const coupler::PeerError &e) {
-    if (comm->me == 0) error->warning(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
-  }
-  coupler::set_peer(nullptr);
+  std::string warning;
+  const std::string line = coupler::finish_coupled_run(*link, last_step, warning);
+  if (comm->me == 0 && !line.empty()) utils::logmesg(lmp, line + "\n");
+  if (comm->me == 0 && !warning.empty()) error->warning(FLERR, "Fix hybrid/mpm: " + warning);
   session.reset();
   link.reset();
 }
@@ -229,22 +225,6 @@ void FixHybridMPM::connect()
                                   "zones need cells that hold several grains. Use cell {:.4g} or more",
                                   opt->cell, kSmallestCellInGrains, opt->continuum.grain_diameter,
                                   kSmallestCellInGrains * opt->continuum.grain_diameter));
-  coupler::Hello hello;
-  coupler::set_text(hello.host, fmt::format("LAMMPS {}", lmp->version));
-  coupler::set_text(hello.units, update->unit_style);
-  hello.dimension = domain->dimension;
-  hello.model = opt->model;
-  hello.mpm_every = opt->every;
-  hello.cell = opt->cell;
-  hello.dt = update->dt;
-  hello.reply_timeout = opt->reply_timeout;
-  hello.idle_timeout = opt->idle_timeout;
-  for (int d = 0; d < 3; d++) {
-    hello.box_lo[d] = domain->boxlo[d];
-    hello.box_hi[d] = domain->boxhi[d];
-  }
-  hello.step = update->ntimestep;
-  hello.time = dem_time();
   // gravity of the grains acts on the continuum too (and sets the energy ledger's potential
   // energy); read once here, checked at every later run's setup
   dem_gravity(opt->continuum.gravity);
@@ -255,15 +235,11 @@ void FixHybridMPM::connect()
     const double steps = dem_steps_per_contact(why);
     opt->continuum.agreement_time = 0.5 * (steps < BIG ? steps : 20.0) * update->dt;
   } else opt->continuum.agreement_time = opt->relax_time;
-  hello.continuum = opt->continuum;
-  for (int d = 0; d < 3; d++)
-    for (int side = 0; side < 2; side++) {
-      const double v = container_edge(d, side);
-      if (v < domain->boxlo[d] || v > domain->boxhi[d])
-        error->all(FLERR, fmt::format("Fix hybrid/mpm: container {} {} = {} lies outside the box ({} to {})",
-                                      "xyz"[d], side ? "hi" : "lo", v, domain->boxlo[d], domain->boxhi[d]));
-      (side ? hello.continuum.container_hi : hello.continuum.container_lo)[d] = v;
-    }
+  std::string problem;
+  const coupler::Hello hello =
+      coupler::make_hello(*opt, fmt::format("LAMMPS {}", lmp->version), update->unit_style, domain->dimension,
+                          update->dt, domain->boxlo, domain->boxhi, update->ntimestep, dem_time(), problem);
+  if (!problem.empty()) error->all(FLERR, "Fix hybrid/mpm: " + problem);
 
   try {
     link = coupler::connect_dem(world, hello);    // collective over world, same outcome on all ranks

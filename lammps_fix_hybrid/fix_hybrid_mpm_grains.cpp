@@ -20,6 +20,7 @@
 
 #include "GRANULAR/pair_gran_hooke_history.h"
 
+#include "coupler/dem_coupling.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_timestep.hpp"
@@ -183,45 +184,10 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
 
 void FixHybridMPM::grain_defaults()
 {
-  // mu(I) needs the grain size and solid density; unless given, take them from the grains
-  double sums[3] = {0, 0, 0}, all[3];
-  const bool two_d = domain->dimension == 2;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double r = atom->radius[i];
-    const double volume = two_d ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r;
-    sums[0] += 2.0 * r;
-    sums[1] += atom->rmass[i] / std::max(weight[i], 1e-300);
-    sums[2] += volume;
-  }
-  MPI_Allreduce(sums, all, 3, MPI_DOUBLE, MPI_SUM, world);
-  const bigint n = group->count(igroup);
-  if (n > 0 && !opt->diameter_given) opt->continuum.grain_diameter = all[0] / n;
-  if (all[2] > 0 && !opt->density_given) opt->continuum.grain_density = all[1] / all[2];
-
-  // grains made from points: the size spread, type and groups of the grains there are
-  double range[2] = {-BIG, -BIG}, range_all[2];    // -min diameter, max diameter
-  int common_mask = ~0, all_mask = ~0, smallest_type = atom->ntypes + 1, type_all = 0;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    range[0] = std::max(range[0], -2.0 * atom->radius[i]);
-    range[1] = std::max(range[1], 2.0 * atom->radius[i]);
-    common_mask &= atom->mask[i];
-    smallest_type = std::min(smallest_type, atom->type[i]);
-  }
-  MPI_Allreduce(range, range_all, 2, MPI_DOUBLE, MPI_MAX, world);
-  MPI_Allreduce(&common_mask, &all_mask, 1, MPI_INT, MPI_BAND, world);
-  MPI_Allreduce(&smallest_type, &type_all, 1, MPI_INT, MPI_MIN, world);
-  if (n > 0) {
-    const double dmin = -range_all[0], dmax = range_all[1];
-    // the template's radii are uniform in mean (1 +- p); it needs p < 0.5
-    polydispersity = std::min(0.45, (dmax - dmin) / (dmax + dmin));
-    new_grain_mask = all_mask | 1 | groupbit;
-    if (opt->grain_type == 0) opt->grain_type = type_all;
-  } else {
-    new_grain_mask = 1 | groupbit;
-    if (opt->grain_type == 0) opt->grain_type = 1;
-  }
+  // mu(I) needs the grain size and solid density; grains made from points take the size
+  // spread, type and groups of the grains there are
+  const coupler::GroupGrains gg = coupler::group_grains(grains(), atom->type, atom->ntypes, domain->dimension, world);
+  new_grain_mask = coupler::apply_group_defaults(*opt, gg, groupbit, polydispersity);
 }
 
 /* ----------------------------------------------------------------------
@@ -279,14 +245,8 @@ coupler::GrainRules FixHybridMPM::grain_rules() const
 
 coupler::DemGrains FixHybridMPM::grains() const
 {
-  coupler::DemGrains g;
-  g.n = atom->nlocal;
-  g.x = atom->x, g.v = atom->v, g.omega = atom->omega;
-  g.radius = atom->radius, g.rmass = atom->rmass;
-  g.mask = atom->mask, g.groupbit = groupbit;
-  g.weight = weight;
-  g.stress = atom_stress;
-  return g;
+  return coupler::grain_view(atom->nlocal, atom->x, atom->v, atom->omega, atom->radius, atom->rmass, atom->mask,
+                             groupbit, arrays());
 }
 
 double FixHybridMPM::container_edge(int axis, int side) const
