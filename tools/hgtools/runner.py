@@ -8,6 +8,7 @@ Codes:
     lammps    Debian's stock LAMMPS (`lmp`, or `exe`)
     liggghts  Debian's LIGGGHTS 3.8 (`liggghts`, or `exe`), with -nocite
     hybrid    lmp_hybrid + mpm_solver --coupled in one MPMD job (tools/hybrid_launch.py composes it)
+    hybrid_liggghts  liggghts_hybrid + mpm_solver --coupled (hybrid_launch.py --host liggghts)
 All run with `-log LOG -screen none -var NAME VALUE ...`, more than one rank through
 tools/mpirun.sh, in the log's directory unless `cwd` says otherwise. `run_mpm` runs mpm_solver
 alone on a scene file (its output is the log).
@@ -31,7 +32,7 @@ from pathlib import Path
 TOOLS = Path(__file__).resolve().parent.parent
 REPO = TOOLS.parent
 SOLVER = Path(os.environ.get("HYBRID_BUILD_DIR", REPO / "build")) / "mpm_solver" / "mpm_solver"
-CODES = ("lammps", "liggghts", "hybrid")
+CODES = ("lammps", "liggghts", "hybrid", "hybrid_liggghts")
 EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
 
 
@@ -92,8 +93,9 @@ def command(code: str, deck: Path, variables: dict, log: Path, np_: int = 1, exe
     args = ["-log", str(log), "-screen", "none"]
     for k, v in variables.items():
         args += ["-var", k, str(v)]
-    if code == "hybrid":
-        return [sys.executable, str(TOOLS / "hybrid_launch.py"), "-np", str(np_), str(deck), *args]
+    if code in ("hybrid", "hybrid_liggghts"):
+        host = ["--host", "liggghts"] if code == "hybrid_liggghts" else []
+        return [sys.executable, str(TOOLS / "hybrid_launch.py"), *host, "-np", str(np_), str(deck), *args]
     if code not in EXECUTABLES:
         raise ValueError(f"unknown code {code!r} (known: {', '.join(CODES)})")
     exe = exe or shutil.which(EXECUTABLES[code])

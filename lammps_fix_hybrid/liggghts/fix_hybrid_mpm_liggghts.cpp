@@ -1,0 +1,615 @@
+/* ----------------------------------------------------------------------
+   fix hybrid/mpm for LIGGGHTS 3.8 (hybrid-granular project)
+
+   The LIGGGHTS adapter of the coupling of docs/design.md section 5: the
+   same options, handshake, exchange and rezone sequences as the LAMMPS fix
+   (coupler/dem_coupling.hpp, coupler/dem_session.hpp), with LIGGGHTS's
+   atoms, regions and errors. What it does not do yet (adaptive zones,
+   restart files, calibrated materials, 2D) it refuses with a clear error:
+   docs/fix_hybrid_mpm.md, "LIGGGHTS host".
+------------------------------------------------------------------------- */
+
+#include "fix_hybrid_mpm_liggghts.h"
+
+#include "atom.h"
+#include "atom_vec.h"
+#include "comm.h"
+#include "compute.h"
+#include "domain.h"
+#include "error.h"
+#include "fix_gravity.h"
+#include "force.h"
+#include "memory.h"
+#include "modify.h"
+#include "region.h"
+#include "universe.h"
+#include "update.h"
+
+#include "coupler/dem_coupling.hpp"
+#include "coupler/dem_grains.hpp"
+#include "coupler/dem_ledger.hpp"
+#include "coupler/dem_session.hpp"
+#include "coupler/enrichment.hpp"
+#include "coupler/fix_options.hpp"
+#include "coupler/protocol.hpp"
+#include "coupler/rezone_log.hpp"
+#include "coupler/text.hpp"
+#include "coupler/transfer.hpp"
+#include "coupler/version.hpp"
+#include "coupler/zones.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+
+using namespace LAMMPS_NS;
+using namespace FixConst;
+
+namespace {
+
+constexpr double kBig = 1.0e20;
+
+using Vec3 = Eigen::Matrix<double, 3, 1>;
+
+// LIGGGHTS's Error keeps the text it is given and prints it again at the end of the job (its
+// SpecialMessages): the text must outlive the call, so the fix's messages are kept for good
+const char *kept(const std::string &text)
+{
+  static std::deque<std::string> messages;
+  messages.push_back(text);
+  return messages.back().c_str();
+}
+
+coupler::GridGeometry<3> box_grid(const Domain *domain, double cell)
+{
+  return coupler::padded_grid<3>(Eigen::Map<const Vec3>(domain->boxlo), Eigen::Map<const Vec3>(domain->boxhi), cell);
+}
+
+}    // namespace
+
+/* ---------------------------------------------------------------------- */
+
+Fix *FixHybridMPMLiggghts::creator(LAMMPS *lmp, int narg, char **arg)
+{
+  return new FixHybridMPMLiggghts(lmp, narg, arg);
+}
+
+FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
+    Fix(lmp, narg, arg), last_ack(new coupler::StepAck), ledger(new coupler::EnergyLedger), weight(NULL),
+    support(NULL), atom_stress(NULL), stress_id(NULL), exchanges(0), coupled_grains(0), last_step(0),
+    last_output_step(-1), vector_step(-1), clock_step(-1), converted(false), rezone_pending(false),
+    ledger_started(false), new_grain_mask(1), polydispersity(0.0), continuum_start(0.0), clock_time(0.0),
+    clock_dt(0.0)
+{
+  static_assert(sizeof(vector_cache) / sizeof(vector_cache[0]) == coupler::kVecSize, "f_ID[] entries");
+  for (double &v : vector_cache) v = 0.0;
+  if (domain->dimension != 3)
+    fail("LIGGGHTS runs are 3D only (its 2D support cannot bin the atoms of a coupled run): use dimension 3, "
+         "or lmp_hybrid (LAMMPS) for a 2D deck");
+  try {
+    opt.reset(new coupler::FixOptions(coupler::parse_fix_options(
+        std::vector<std::string>(arg + 3, arg + narg), domain->dimension, atom->ntypes,
+        [&](const std::string &rid) { return domain->find_region(rid.c_str()) >= 0; })));
+  } catch (const coupler::OptionError &e) {
+    error->all(FLERR, kept("Illegal fix hybrid/mpm command: " + std::string(e.what())));
+  }
+  // what this host does not do yet: refused, not ignored
+  if (opt->adaptive())
+    fail("adaptive zones (keyword adaptive) are not supported on LIGGGHTS yet: use fixed continuum regions, or "
+         "lmp_hybrid (LAMMPS)");
+  if (opt->material)
+    fail("keyword material is not supported on LIGGGHTS yet (its calibrations are of LAMMPS's gran/hooke/history "
+         "law): give the continuum's constants on the fix line");
+  if (!opt->mpm_state_path.empty())
+    fail("keyword mpm_state is not supported on LIGGGHTS yet: restart files of a coupled LIGGGHTS run do not hold "
+         "the coupling's state");
+
+  nevery = 1;              // the support force acts every step; exchanges every `every` steps
+  scalar_flag = 1;         // f_ID = number of completed exchanges
+  global_freq = 1;
+  extscalar = 0;
+  vector_flag = 1;         // f_ID[i]: the same entries as the LAMMPS fix (coupler::ThermoEntry)
+  size_vector = coupler::kVecSize;
+  extvector = 0;
+  force_reneighbor = 1;    // the conversion deletes grains at a pre_exchange
+  next_reneighbor = -1;
+  create_attribute = 1;    // new atoms get weight 1 and no support (set_arrays)
+  restart_global = 1;      // only to refuse a restart after the conversion (restart())
+
+  grow_arrays(atom->nmax);
+  atom->add_callback(0);    // Atom::grow
+  for (int i = 0; i < atom->nlocal; i++) set_arrays(i);
+
+  if (domain->triclinic)
+    fail("the simulation box is triclinic, but the MPM grid needs an orthogonal box (its cells are axis-aligned)");
+
+  // per-atom stress*volume for the Love-Weber stress of new material points
+  if (!opt->continuum_regions.empty()) {
+    const std::string sid = std::string(id) + "_hybrid_stress";
+    stress_id = new char[sid.size() + 1];
+    std::strcpy(stress_id, sid.c_str());
+    char all[] = "all", style[] = "stress/atom", virial[] = "virial";
+    char *carg[] = {stress_id, all, style, virial};
+    modify->add_compute(4, carg);
+  }
+
+  // tell the MPM process at MPI_Finalize if LIGGGHTS stops on an error (see coupler)
+  try {
+    coupler::install_dem_finalize_hook(world);
+  } catch (const std::exception &e) {
+    fail(e.what());
+  }
+}
+
+FixHybridMPMLiggghts::~FixHybridMPMLiggghts()
+{
+  if (link) {
+    // normal end of the coupled run (unfix, clear, end of input): the MPM process exits 0
+    std::string warning;
+    say(coupler::finish_coupled_run(*link, last_step, warning));
+    if (comm->me == 0 && !warning.empty()) error->warning(FLERR, kept("Fix hybrid/mpm: " + warning));
+    session.reset();
+    link.reset();
+  }
+  if (stress_id && modify->find_compute(stress_id) >= 0) modify->delete_compute(stress_id);
+  delete[] stress_id;
+  atom->delete_callback(id, 0);
+  memory->destroy(weight), memory->destroy(support), memory->destroy(atom_stress);
+}
+
+int FixHybridMPMLiggghts::setmask()
+{
+  int mask = 0;
+  mask |= PRE_EXCHANGE;    // the conversion of the continuum regions' grains (first step)
+  mask |= PRE_NEIGHBOR;    // atoms were exchanged and sorted: rebuild the list of supported grains
+  mask |= END_OF_STEP;     // the coupling exchange
+  mask |= POST_RUN;
+  return mask;
+}
+
+/* ---------------------------------------------------------------------- */
+
+void FixHybridMPMLiggghts::say(const std::string &text) const
+{
+  if (comm->me != 0 || text.empty()) return;
+  if (screen) fprintf(screen, "%s\n", text.c_str());
+  if (logfile) fprintf(logfile, "%s\n", text.c_str());
+}
+
+void FixHybridMPMLiggghts::fail(const std::string &why) const
+{
+  error->all(FLERR, kept("Fix hybrid/mpm: " + why));
+  std::exit(1);    // Error::all does not return
+}
+
+void FixHybridMPMLiggghts::check_pair_style() const
+{
+  // LIGGGHTS's granular pair style is "gran" with its contact model on the pair_style line
+  if (!force->pair_style || std::strncmp(force->pair_style, "gran", 4) != 0)
+    fail(std::string("pair style ") + (force->pair_style ? force->pair_style : "none") +
+         " is not a granular one: use pair_style gran model hooke (or hertz) tangential history");
+}
+
+void FixHybridMPMLiggghts::init()
+{
+  if (!atom->radius_flag || !atom->rmass_flag || !atom->omega_flag)
+    fail("the atom style has no per-atom radius, mass and angular velocity: use atom_style granular (or sphere)");
+  if (std::strcmp(update->unit_style, "si") != 0) fail("needs units si (the MPM process works in SI units)");
+  if (atom->molecular) fail("does not support molecular systems (grains only)");
+  if (!opt->continuum_regions.empty())
+    for (int d = 0; d < 3; d++)
+      if (domain->boundary[d][0] != 1 || domain->boundary[d][1] != 1)
+        fail("with continuum regions needs fixed boundaries ('f') in x, y, z: the continuum's grid covers the box "
+             "and has walls at its faces (use boundary f f f)");
+  for (const auto &rid : opt->continuum_regions)
+    if (domain->find_region(rid.c_str()) < 0) fail("continuum region '" + rid + "' no longer exists");
+  if (update->whichflag == 1 && std::strcmp(update->integrate_style, "verlet") != 0)
+    fail("needs run_style verlet");
+  check_pair_style();
+}
+
+/* ----------------------------------------------------------------------
+   the host's grains and settings as the coupling sees them
+------------------------------------------------------------------------- */
+
+coupler::DemGrains FixHybridMPMLiggghts::grains() const
+{
+  return coupler::grain_view(atom->nlocal, atom->x, atom->v, atom->omega, atom->radius, atom->rmass, atom->mask,
+                             groupbit, arrays());
+}
+
+coupler::GrainRules FixHybridMPMLiggghts::grain_rules() const
+{
+  coupler::GrainRules rules;
+  rules.dimension = 3;
+  rules.density = opt->continuum.grain_density;
+  rules.inertia = opt->inertia;
+  return rules;
+}
+
+void FixHybridMPMLiggghts::grain_totals(double *all) const
+{
+  double local[7];
+  coupler::grain_totals(grains(), opt->inertia, local);
+  MPI_Allreduce(local, all, 7, MPI_DOUBLE, MPI_SUM, world);
+}
+
+double FixHybridMPMLiggghts::grain_energy() const
+{
+  return coupler::grain_energy(grains(), opt->inertia, opt->continuum.gravity);
+}
+
+void FixHybridMPMLiggghts::dem_gravity(double *g) const
+{
+  for (int d = 0; d < 3; d++) g[d] = 0.0;
+  for (int i = 0; i < modify->nfix; i++)
+    if (std::strcmp(modify->fix[i]->style, "gravity") == 0) {
+      double gi[3];
+      static_cast<FixGravity *>(modify->fix[i])->get_gravity(gi);
+      for (int d = 0; d < 3; d++) g[d] += gi[d];
+    }
+}
+
+/* ----------------------------------------------------------------------
+   the coupling's clock (LIGGGHTS's own time at the first run) and steps
+------------------------------------------------------------------------- */
+
+double FixHybridMPMLiggghts::dem_time(bigint step) const
+{
+  if (clock_step < 0) return update->atime + (step - update->atimestep) * update->dt;
+  return clock_time + (step - clock_step) * clock_dt;
+}
+
+coupler::StepHeader FixHybridMPMLiggghts::step_header(int kind) const
+{
+  coupler::StepHeader h;
+  h.step = update->ntimestep;
+  h.time = dem_time(update->ntimestep);
+  h.dt = update->dt;
+  h.kind = kind;
+  return h;
+}
+
+// the time of the next exchange if it is certain now (the MPM process advances to it while
+// LIGGGHTS computes its steps), else -1: the run ends first
+double FixHybridMPMLiggghts::next_exchange_time(bool force_output) const
+{
+  const bigint now = update->ntimestep, next = now + opt->every;
+  if (force_output) return -1.0;
+  if (next <= update->laststep) return dem_time(next);
+  if (opt->continuum.output_every > 0 && update->laststep > now) return dem_time(update->laststep);
+  return -1.0;
+}
+
+/* ---------------------------------------------------------------------- */
+
+void FixHybridMPMLiggghts::connect()
+{
+  const coupler::GroupGrains gg = coupler::group_grains(grains(), atom->type, atom->ntypes, 3, world);
+  new_grain_mask = coupler::apply_group_defaults(*opt, gg, groupbit, polydispersity);
+  dem_gravity(opt->continuum.gravity);
+  // the agreement's relaxation time: LIGGGHTS's contact time is not known to the fix, so 10
+  // steps unless keyword relax gives it
+  opt->continuum.agreement_time = opt->relax_time < 0.0 ? 10.0 * update->dt : opt->relax_time;
+  // "Version LIGGGHTS-PUBLIC 3.8.0, compiled ..." -> "LIGGGHTS 3.8.0" (the handshake's short text)
+  std::string version(universe->version);
+  version = version.substr(0, version.find(','));
+  std::string problem;
+  const coupler::Hello hello =
+      coupler::make_hello(*opt, "LIGGGHTS " + version.substr(version.rfind(' ') + 1), update->unit_style, 3, update->dt,
+                          domain->boxlo, domain->boxhi, update->ntimestep, dem_time(update->ntimestep), problem);
+  if (!problem.empty()) fail(problem);
+  try {
+    link = coupler::connect_dem(world, hello);    // collective over world, same outcome on all ranks
+  } catch (const coupler::PeerError &e) {
+    fail(e.what());
+  }
+  coupler::set_peer(link.get());
+  session.reset(new coupler::DemSession(*link, world, comm->me));
+  say("fix hybrid/mpm: handshake ok with the MPM process (" + std::to_string(link->remote_size()) +
+      " rank(s)): " + link->peer_info() + "; protocol " + std::to_string(coupler::kProtocolVersion) + ", release " +
+      coupler::release_version() + ", host LIGGGHTS, cell " + coupler::shortest(opt->cell) + ", model " +
+      coupler::model_name(opt->model) + ", exchange every " + std::to_string(opt->every) + " step(s)");
+  if (comm->me == 0)
+    error->warning(FLERR, "Fix hybrid/mpm does not check the DEM time step on LIGGGHTS: check it with "
+                          "fix check/timestep/gran (Rayleigh and Hertz times)");
+}
+
+void FixHybridMPMLiggghts::setup(int /*vflag*/)
+{
+  if (clock_step < 0) {
+    clock_time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
+    clock_step = update->ntimestep;
+  } else if (clock_dt != update->dt) {
+    clock_time = dem_time(update->ntimestep);
+    clock_step = update->ntimestep;
+  }
+  clock_dt = update->dt;
+  if (!link) connect();
+  if (zones.empty()) compute_zones();
+  if (!ledger_started) {
+    ledger->start = ledger->energy = grain_energy();
+    continuum_start = last_ack->energy;
+    ledger_started = true;
+  }
+  rezone_pending = false;
+  if (!converted && !opt->continuum_regions.empty()) schedule_conversion();
+}
+
+/* ----------------------------------------------------------------------
+   zone of every grid cell from the continuum regions (same on all ranks)
+------------------------------------------------------------------------- */
+
+void FixHybridMPMLiggghts::compute_zones()
+{
+  std::vector<Region *> regions;
+  for (const auto &rid : opt->continuum_regions) {
+    Region *r = domain->regions[domain->find_region(rid.c_str())];
+    r->prematch();
+    regions.push_back(r);
+  }
+  auto inside = [&](const Vec3 &x) {
+    for (Region *r : regions)
+      if (r->match(x[0], x[1], x[2])) return true;
+    return false;
+  };
+  const coupler::GridGeometry<3> grid = box_grid(domain, opt->cell);
+  zones = coupler::zones_from_regions<3>(grid, Eigen::Map<const Vec3>(domain->boxlo),
+                                         Eigen::Map<const Vec3>(domain->boxhi), opt->hybrid_width, inside);
+  if (opt->continuum_regions.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
+  transfer.reset(new coupler::GrainTransfer<3>(grid));
+  const int empty = coupler::first_empty_region<3>(
+      grid, domain->boxlo, domain->boxhi, static_cast<int>(regions.size()),
+      [&](int k, const double *x) { return regions[k]->match(x[0], x[1], x[2]) != 0; });
+  if (empty >= 0)
+    fail("continuum region '" + opt->continuum_regions[empty] + "' contains no grid cell centre of the box (cell " +
+         coupler::shortest(opt->cell) + "): make the region span at least one cell, or the cell smaller");
+  if (!opt->continuum_regions.empty()) {
+    std::int64_t n[3];
+    coupler::zone_counts<3>(grid, zones, domain->boxlo, domain->boxhi, n);
+    say(coupler::zone_counts_line(n));
+  }
+}
+
+int FixHybridMPMLiggghts::zone_of(const double *x) const
+{
+  if (zones.empty()) return coupler::kDiscrete;
+  const auto &grid = transfer->grid();
+  return zones[coupler::cell_index<3>(grid, coupler::cell_of<3>(grid, Eigen::Map<const Vec3>(x)))];
+}
+
+/* ----------------------------------------------------------------------
+   the conversion: a rezone to the continuum regions' zones at the next
+   step's pre_exchange, with the Love-Weber stress of this step
+------------------------------------------------------------------------- */
+
+void FixHybridMPMLiggghts::schedule_conversion()
+{
+  Compute *c = stress_id ? modify->compute[modify->find_compute(stress_id)] : NULL;
+  if (!c) fail("its compute stress/atom (for the stress of new material points) no longer exists");
+  c->compute_peratom();
+  for (int i = 0; i < atom->nlocal; i++)
+    for (int k = 0; k < 6; k++) atom_stress[i][k] = c->array_atom[i][k];
+  rezone_pending = true;
+  next_reneighbor = update->ntimestep + 1;
+}
+
+void FixHybridMPMLiggghts::pre_exchange()
+{
+  if (!rezone_pending || update->ntimestep != next_reneighbor) return;
+  rezone();
+  rezone_pending = false;
+  converted = true;
+}
+
+// as LIGGGHTS's particle insertion: the atom, its per-atom data in every fix (contact history, ours)
+bool FixHybridMPMLiggghts::make_grain(const coupler::PlannedGrain<3> &p)
+{
+  const auto &g = p.grain;
+  double coord[3] = {g.x[0], g.x[1], g.x[2]};
+  for (int a = 0; a < 3; ++a)
+    if (coord[a] < domain->sublo[a] || coord[a] >= domain->subhi[a]) return false;
+  atom->avec->create_atom(opt->grain_type, coord);
+  const int n = atom->nlocal - 1;
+  atom->mask[n] = new_grain_mask;
+  atom->radius[n] = g.radius;
+  atom->density[n] = opt->continuum.grain_density;
+  atom->rmass[n] = p.share * g.mass;
+  for (int a = 0; a < 3; a++) atom->v[n][a] = g.v[a], atom->omega[n][a] = 0.0;
+  for (int f = 0; f < modify->nfix; f++)
+    if (modify->fix[f]->create_attribute) modify->fix[f]->set_arrays(n);
+  weight[n] = p.share;
+  return true;
+}
+
+void FixHybridMPMLiggghts::rezone()
+{
+  for (int i = 0; i < atom->nlocal; i++)
+    for (int a = 0; a < 3; a++)
+      if (!std::isfinite(atom->x[i][a]) || !std::isfinite(atom->v[i][a]) || !std::isfinite(atom->rmass[i]))
+        error->one(FLERR, "Fix hybrid/mpm: an atom has a non-finite (NaN or inf) position, velocity or mass before "
+                          "the conversion: check the time step and the input");
+  // as LIGGGHTS's insertion: atoms are created and deleted now, the ghosts are rebuilt after
+  if (atom->map_style) atom->map_clear();
+  atom->nghost = 0;
+  double grains_before[7], grains_after[7], before[7], after[7];
+  grain_totals(grains_before);
+  ledger->close_dem_bracket(grain_energy());
+
+  coupler::RezonePlan<3> plan;
+  plan.grid = &transfer->grid();
+  plan.header = step_header(coupler::kStepRezone);
+  plan.header.zone_source = coupler::kZonesGiven;
+  plan.oracle = &opt->oracle;
+  if (!packing)
+    packing.reset(new coupler::PackingTemplate<3>(
+        coupler::make_packing_template<3>(6, polydispersity, static_cast<std::uint32_t>(opt->template_seed))));
+  plan.packing = packing.get();
+  plan.rules = grain_rules();
+  plan.grain_diameter = opt->continuum.grain_diameter;
+  for (int a = 0; a < 3; a++)
+    plan.lo[a] = opt->container_edge(a, 0, domain->boxlo, domain->boxhi),
+    plan.hi[a] = opt->container_edge(a, 1, domain->boxlo, domain->boxhi);
+  coupler::RezoneAtoms<3> atoms;
+  atoms.grains = [&] { return grains(); };
+  atoms.make = [&](const coupler::PlannedGrain<3> &p) { return make_grain(p); };
+  atoms.remove = [&](const std::vector<char> &flags) {
+    atom->nlocal = coupler::delete_flagged(flags, atom->nlocal, [&](int from, int to) { atom->avec->copy(from, to, 1); });
+  };
+  atoms.discrete_cells = [] { return std::vector<std::uint64_t>(); };
+  coupler::StepAck ack;
+  coupler::RezoneCounts counts;
+  const coupler::StepOutcome outcome = coupler::rezone_grains<3>(*session, world, plan, zones, atoms, support, ack, counts);
+  if (!outcome.ok()) fail(outcome.what);
+  *last_ack = ack;
+
+  grain_totals(grains_after);
+  ledger->close_rezone(grain_energy());
+  const coupler::RezoneAftermath aftermath = coupler::rezone_aftermath(
+      grains(), grain_rules(), atom->nlocal > 0 ? *std::max_element(atom->tag, atom->tag + atom->nlocal) : 0, world);
+  const std::string too_many =
+      coupler::new_atoms_problem(counts.made, counts.deleted, atom->natoms, MAXBIGINT, aftermath.max_tag, MAXTAGINT,
+                                 update->ntimestep, "LIGGGHTS", "LIGGGHTS's atom IDs are 32-bit");
+  if (!too_many.empty()) fail(too_many);
+  atom->natoms += counts.made - counts.deleted;
+  if (counts.made > 0 && atom->tag_enable) atom->tag_extend();
+  if (atom->map_style) {
+    atom->map_init();
+    atom->map_set();
+  }
+  const coupler::RezoneReport report =
+      coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath.drift);
+  coupler::rezone_totals(grains_before, grains_after, ack, before, after);
+  say(coupler::rezone_line(report));
+  say(coupler::rezone_totals_line(report.step, before, after));
+}
+
+/* ----------------------------------------------------------------------
+   the support force every step, the exchange every `every` steps
+------------------------------------------------------------------------- */
+
+// atoms were exchanged and sorted (LIGGGHTS sorts before pre_neighbor): the supported grains' indices
+void FixHybridMPMLiggghts::pre_neighbor()
+{
+  supported = coupler::supported_grains(support, atom->nlocal);
+}
+
+void FixHybridMPMLiggghts::end_of_step()
+{
+  const double dt = update->dt;
+  double **v = atom->v;
+  double kicked = 0.0;
+  for (int i : supported)
+    for (int a = 0; a < 3; a++) {
+      const double dv = dt * support[i][a];
+      kicked += atom->rmass[i] * (v[i][a] + 0.5 * dv) * dv;
+      v[i][a] += dv;
+    }
+  ledger->support_open += kicked;
+  if (update->ntimestep % opt->every == 0) exchange(false);
+}
+
+void FixHybridMPMLiggghts::post_run()
+{
+  if (link && opt->continuum.output_every > 0 && last_output_step != update->ntimestep) exchange(true);
+  last_step = update->ntimestep;
+  if (link) say("fix hybrid/mpm: " + std::to_string(exchanges) + " exchange(s) with the MPM process so far");
+}
+
+void FixHybridMPMLiggghts::exchange(bool force_output)
+{
+  ledger->close_dem_bracket(grain_energy());
+  const coupler::DemGrains g = grains();
+  const std::vector<int> index = coupler::coupled_grains(g, [&](const double *xi) { return zone_of(xi); });
+  coupler::StepHeader h = step_header(coupler::kStepCouple);
+  h.output = coupler::output_frame_due(opt->continuum.output_every, exchanges, force_output) ? 1 : 0;
+  h.next_time = next_exchange_time(force_output);
+  if (h.output) last_output_step = update->ntimestep;
+  auto frame = [&] { return coupler::frame_records(grains(), atom->tag, [&](const double *x) { return zone_of(x); }); };
+  coupler::StepAck ack;
+  coupler::ExchangeTally tally;
+  const coupler::StepOutcome outcome = session->settle(coupler::exchange_grains<3>(
+      *session, world, *transfer, g, index, h, opt->continuum.pic, support, supported, frame, ack, tally));
+  coupled_grains = tally.coupled;
+  ledger->add_agreement(tally.kicked);
+  last_step = update->ntimestep;
+  if (!outcome.ok()) fail(outcome.what);
+  *last_ack = ack;
+  exchanges++;
+  link->count_exchange();
+}
+
+/* ----------------------------------------------------------------------
+   thermo output: f_ID the exchanges, f_ID[i] the LAMMPS fix's entries
+   (coupler::ThermoEntry; the wall-time entries are 0 on LIGGGHTS)
+------------------------------------------------------------------------- */
+
+double FixHybridMPMLiggghts::compute_scalar()
+{
+  return static_cast<double>(exchanges);
+}
+
+double FixHybridMPMLiggghts::compute_vector(int n)
+{
+  if (vector_step != update->ntimestep) {
+    double totals[7], local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
+    grain_totals(totals);
+    ledger->sums(local);
+    MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
+    coupler::thermo_vector(*last_ack, exchanges, coupled_grains, totals, sums, continuum_start, vector_cache);
+    vector_step = update->ntimestep;
+  }
+  return vector_cache[n];
+}
+
+double FixHybridMPMLiggghts::memory_usage()
+{
+  return static_cast<double>(sizeof(*this)) + atom->nmax * coupler::GrainArrays::kValues * sizeof(double) + zones.size();
+}
+
+/* ----------------------------------------------------------------------
+   restart files: the coupling's state is not saved on LIGGGHTS yet, so a
+   run restarted after the conversion (its points would be lost) is refused
+------------------------------------------------------------------------- */
+
+void FixHybridMPMLiggghts::write_restart(FILE *fp)
+{
+  const double list[1] = {converted ? 1.0 : 0.0};
+  if (comm->me == 0) {
+    const int size = sizeof(list);
+    fwrite(&size, sizeof(int), 1, fp);
+    fwrite(list, sizeof(double), 1, fp);
+  }
+}
+
+void FixHybridMPMLiggghts::restart(char *buf)
+{
+  if (reinterpret_cast<double *>(buf)[0] != 0.0)
+    fail("the restart file was written after grains became material points, and LIGGGHTS runs do not save the "
+         "MPM state yet: restart from a file written before the first run, or use lmp_hybrid (LAMMPS)");
+}
+
+/* ----------------------------------------------------------------------
+   per-atom weight, support and stored stress
+------------------------------------------------------------------------- */
+
+void FixHybridMPMLiggghts::grow_arrays(int nmax)
+{
+  weight = memory->grow(weight, nmax, "hybrid/mpm:weight");
+  support = memory->grow(support, nmax, 3, "hybrid/mpm:support");
+  atom_stress = memory->grow(atom_stress, nmax, 6, "hybrid/mpm:atom_stress");
+}
+
+coupler::GrainArrays FixHybridMPMLiggghts::arrays() const
+{
+  coupler::GrainArrays a;
+  a.weight = weight, a.support = support, a.stress = atom_stress;
+  return a;
+}
+
+void FixHybridMPMLiggghts::copy_arrays(int i, int j, int /*delflag*/) { arrays().copy(i, j); }
+void FixHybridMPMLiggghts::set_arrays(int i) { arrays().reset(i); }
+int FixHybridMPMLiggghts::pack_exchange(int i, double *buf) { return arrays().pack(i, buf); }
+int FixHybridMPMLiggghts::unpack_exchange(int nlocal, double *buf) { return arrays().unpack(nlocal, buf); }

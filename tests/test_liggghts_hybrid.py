@@ -1,0 +1,106 @@
+"""LIGGGHTS 3.8 as the DEM host (liggghts_hybrid, tools/hybrid_launch.py --host liggghts): what it
+does not support yet is refused with an error naming the problem and what to do, and the MPM
+process is told at once; an error during the coupled run stops both sides. (Its conservation
+tests are the LAMMPS host's, parametrised: tests/test_coupled_physics.py.)
+"""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from conftest import REPO
+from test_coupled_launch import LAUNCH, STOP_WITHIN, env, output
+
+DECK = REPO / "input_decks" / "hybrid" / "momentum_3d.liggghts"
+
+# a 2D box and the fix, nothing else (the fix refuses 2D when it is defined)
+DECK_2D = """units si
+atom_style sphere
+dimension 2
+boundary f f p
+region box block 0 0.1 0 0.1 -0.002 0.002 units box
+create_box 1 box
+fix couple all hybrid/mpm cell 0.01
+"""
+
+
+def launch(*args: str, timeout: float = 60, cwd: Path | None = None) -> tuple[subprocess.CompletedProcess, float]:
+    """tools/hybrid_launch.py; the output is read with undecodable bytes replaced: after an error
+    in a coupled job LIGGGHTS prints its message a second time from freed memory."""
+    t0 = time.monotonic()
+    proc = subprocess.run([sys.executable, str(LAUNCH), *args], capture_output=True, text=True, errors="replace",
+                          timeout=timeout, env=env(), cwd=cwd)
+    return proc, time.monotonic() - t0
+
+
+@pytest.fixture(scope="module")
+def liggghts_hybrid(hybrid_programs) -> str:
+    exe = hybrid_programs.get("liggghts_hybrid", "")
+    if not exe or not Path(exe).exists():
+        pytest.fail("liggghts_hybrid is not built: libliggghts-dev was not found at configure time (tools/setup.sh)")
+    return exe
+
+
+def edited_deck(tmp_path: Path, edit) -> Path:
+    deck = tmp_path / "deck.liggghts"
+    deck.write_text(edit(DECK.read_text()))
+    return deck
+
+
+def sub(pattern: str, new: str):
+    def edit(text: str) -> str:
+        out = re.sub(pattern, new, text, flags=re.M)
+        assert out != text, pattern
+        return out
+    return edit
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda _: DECK_2D, "LIGGGHTS runs are 3D only"),
+    (sub(r"youngs 1.0e5$", "youngs 1.0e5 adaptive 10"), "adaptive zones (keyword adaptive) are not supported on "
+                                                        "LIGGGHTS yet: use fixed continuum regions"),
+    (sub(r"youngs 1.0e5$", "material spheres_3d"), "keyword material is not supported on LIGGGHTS yet"),
+    (sub(r"youngs 1.0e5$", "youngs 1.0e5 mpm_state state.h5"), "keyword mpm_state is not supported on LIGGGHTS yet"),
+    (sub(r"^pair_style .*$\n^pair_coeff .*$", "pair_style soft 0.004\npair_coeff * * 1.0"),
+     "pair style soft is not a granular one: use pair_style gran model hooke (or hertz) tangential history"),
+], ids=["2d", "adaptive", "material", "mpm_state", "pair_style"])
+def test_liggghts_refuses_what_it_does_not_support_naming_it(tmp_path, liggghts_hybrid, edit, message):
+    deck = edited_deck(tmp_path, edit)
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "20", "-log", "none",
+                           timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "ERROR: Fix hybrid/mpm: " + message in text, text
+    # the MPM process is told at once instead of waiting for its handshake timeout
+    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+def test_liggghts_error_during_the_coupled_run_stops_the_mpm_process(tmp_path, liggghts_hybrid):
+    deck = edited_deck(tmp_path, lambda t: t + "\nno_such_command 1\n")
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "50", "-var", "every", "10",
+                           "-log", "none", timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert "ERROR: Unknown command: no_such_command" in text, text
+    assert "mpm_solver: error: LAMMPS stopped the coupled run after 5 exchange(s)" in text, text
+    assert "ranks 0-1 are LIGGGHTS (liggghts_hybrid), rank 2 is mpm_solver" in text, text
+    assert elapsed < STOP_WITHIN
+
+
+def test_liggghts_run_warns_that_the_time_step_is_the_users_to_check(tmp_path, liggghts_hybrid):
+    t0 = time.monotonic()
+    proc, _ = launch("--host", "liggghts", "-np", "1", str(DECK), "-var", "nsteps", "10", "-log", "none",
+                     timeout=60, cwd=tmp_path)
+    text = output(proc)
+    assert proc.returncode == 0, text
+    assert "WARNING: Fix hybrid/mpm does not check the DEM time step on LIGGGHTS: check it with " \
+           "fix check/timestep/gran" in text, text
+    assert "handshake ok with LIGGGHTS 3.8.0" in text, text    # the MPM process names its host
+    assert "fix hybrid/mpm: finished the coupled run after 10 exchange(s)" in text, text
+    assert time.monotonic() - t0 < 60
