@@ -62,13 +62,11 @@ def sub(pattern: str, new: str):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda _: DECK_2D, "LIGGGHTS runs are 3D only"),
-    (sub(r"youngs 1.0e5$", "youngs 1.0e5 adaptive 10"), "adaptive zones (keyword adaptive) are not supported on "
-                                                        "LIGGGHTS yet: use fixed continuum regions"),
     (sub(r"youngs 1.0e5$", "material spheres_3d"), "keyword material is not supported on LIGGGHTS yet"),
     (sub(r"youngs 1.0e5$", "youngs 1.0e5 mpm_state state.h5"), "keyword mpm_state is not supported on LIGGGHTS yet"),
     (sub(r"^pair_style .*$\n^pair_coeff .*$", "pair_style soft 0.004\npair_coeff * * 1.0"),
      "pair style soft is not a granular one: use pair_style gran model hooke (or hertz) tangential history"),
-], ids=["2d", "adaptive", "material", "mpm_state", "pair_style"])
+], ids=["2d", "material", "mpm_state", "pair_style"])
 def test_liggghts_refuses_what_it_does_not_support_naming_it(tmp_path, liggghts_hybrid, edit, message):
     deck = edited_deck(tmp_path, edit)
     proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "20", "-log", "none",

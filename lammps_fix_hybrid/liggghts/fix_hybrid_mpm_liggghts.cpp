@@ -4,8 +4,8 @@
    The LIGGGHTS adapter of the coupling of docs/design.md section 5: the
    same options, handshake, exchange and rezone sequences as the LAMMPS fix
    (coupler/dem_coupling.hpp, coupler/dem_session.hpp), with LIGGGHTS's
-   atoms, regions and errors. What it does not do yet (adaptive zones,
-   restart files, calibrated materials, 2D) it refuses with a clear error:
+   atoms, regions and errors. What it does not do yet (restart files,
+   calibrated materials, 2D) it refuses with a clear error:
    docs/fix_hybrid_mpm.md, "LIGGGHTS host".
 ------------------------------------------------------------------------- */
 
@@ -80,7 +80,7 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), last_ack(new coupler::StepAck), ledger(new coupler::EnergyLedger), weight(NULL),
     support(NULL), atom_stress(NULL), stress_id(NULL), exchanges(0), coupled_grains(0), last_step(0),
     last_output_step(-1), vector_step(-1), clock_step(-1), converted(false), rezone_pending(false),
-    ledger_started(false), new_grain_mask(1), polydispersity(0.0), continuum_start(0.0), clock_time(0.0),
+    ledger_started(false), new_grain_mask(1), rezone_source(0), polydispersity(0.0), continuum_start(0.0), clock_time(0.0),
     clock_dt(0.0)
 {
   static_assert(sizeof(vector_cache) / sizeof(vector_cache[0]) == coupler::kVecSize, "f_ID[] entries");
@@ -96,9 +96,6 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
     error->all(FLERR, kept("Illegal fix hybrid/mpm command: " + std::string(e.what())));
   }
   // what this host does not do yet: refused, not ignored
-  if (opt->adaptive())
-    fail("adaptive zones (keyword adaptive) are not supported on LIGGGHTS yet: use fixed continuum regions, or "
-         "lmp_hybrid (LAMMPS)");
   if (opt->material)
     fail("keyword material is not supported on LIGGGHTS yet (its calibrations are of LAMMPS's gran/hooke/history "
          "law): give the continuum's constants on the fix line");
@@ -126,7 +123,7 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
     fail("the simulation box is triclinic, but the MPM grid needs an orthogonal box (its cells are axis-aligned)");
 
   // per-atom stress*volume for the Love-Weber stress of new material points
-  if (!opt->continuum_regions.empty()) {
+  if (opt->splits()) {
     const std::string sid = std::string(id) + "_hybrid_stress";
     stress_id = new char[sid.size() + 1];
     std::strcpy(stress_id, sid.c_str());
@@ -198,13 +195,14 @@ void FixHybridMPMLiggghts::init()
     fail("the atom style has no per-atom radius, mass and angular velocity: use atom_style granular (or sphere)");
   if (std::strcmp(update->unit_style, "si") != 0) fail("needs units si (the MPM process works in SI units)");
   if (atom->molecular) fail("does not support molecular systems (grains only)");
-  if (!opt->continuum_regions.empty())
+  if (opt->splits())
     for (int d = 0; d < 3; d++)
       if (domain->boundary[d][0] != 1 || domain->boundary[d][1] != 1)
-        fail("with continuum regions needs fixed boundaries ('f') in x, y, z: the continuum's grid covers the box "
+        fail("with continuum regions or adaptive zones needs fixed boundaries ('f') in x, y, z: the continuum's grid covers the box "
              "and has walls at its faces (use boundary f f f)");
-  for (const auto &rid : opt->continuum_regions)
-    if (domain->find_region(rid.c_str()) < 0) fail("continuum region '" + rid + "' no longer exists");
+  for (const auto *ids : {&opt->continuum_regions, &opt->discrete_regions})
+    for (const auto &rid : *ids)
+      if (domain->find_region(rid.c_str()) < 0) fail("region '" + rid + "' of the fix line no longer exists");
   if (update->whichflag == 1 && std::strcmp(update->integrate_style, "verlet") != 0)
     fail("needs run_style verlet");
   check_pair_style();
@@ -273,11 +271,12 @@ coupler::StepHeader FixHybridMPMLiggghts::step_header(int kind) const
 }
 
 // the time of the next exchange if it is certain now (the MPM process advances to it while
-// LIGGGHTS computes its steps), else -1: the run ends first
+// LIGGGHTS computes its steps), else -1: the run ends first, or a rezone comes first
 double FixHybridMPMLiggghts::next_exchange_time(bool force_output) const
 {
   const bigint now = update->ntimestep, next = now + opt->every;
   if (force_output) return -1.0;
+  if (opt->adaptive() && converted && now % opt->adapt_every == 0 && now < update->laststep) return -1.0;
   if (next <= update->laststep) return dem_time(next);
   if (opt->continuum.output_every > 0 && update->laststep > now) return dem_time(update->laststep);
   return -1.0;
@@ -334,8 +333,13 @@ void FixHybridMPMLiggghts::setup(int /*vflag*/)
     continuum_start = last_ack->energy;
     ledger_started = true;
   }
+  // a rezone left pending at the end of the last run is dropped (its stress is of a step before
+  // the commands between the runs); the oracle runs again at its next step
   rezone_pending = false;
-  if (!converted && !opt->continuum_regions.empty()) schedule_conversion();
+  if (!converted && opt->splits())
+    schedule_rezone(opt->continuum_regions.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
+  if (opt->adaptive())    // the Love-Weber stress of the first oracle step needs its per-atom virial
+    stress_compute()->addstep((update->ntimestep / opt->adapt_every + 1) * opt->adapt_every);
 }
 
 /* ----------------------------------------------------------------------
@@ -381,25 +385,56 @@ int FixHybridMPMLiggghts::zone_of(const double *x) const
 }
 
 /* ----------------------------------------------------------------------
-   the conversion: a rezone to the continuum regions' zones at the next
-   step's pre_exchange, with the Love-Weber stress of this step
+   a rezone (the conversion to the continuum regions' zones, or the
+   oracle's) at the next step's pre_exchange, with the Love-Weber stress of
+   this step kept per atom (it travels with the atoms until then)
 ------------------------------------------------------------------------- */
 
-void FixHybridMPMLiggghts::schedule_conversion()
+Compute *FixHybridMPMLiggghts::stress_compute() const
 {
-  Compute *c = stress_id ? modify->compute[modify->find_compute(stress_id)] : NULL;
-  if (!c) fail("its compute stress/atom (for the stress of new material points) no longer exists");
+  const int icompute = stress_id ? modify->find_compute(stress_id) : -1;
+  if (icompute < 0)
+    fail("its compute stress/atom (for the stress of new material points) no longer exists: do not uncompute it "
+         "while the fix is defined");
+  return modify->compute[icompute];
+}
+
+void FixHybridMPMLiggghts::schedule_rezone(int source)
+{
+  Compute *c = stress_compute();
   c->compute_peratom();
   for (int i = 0; i < atom->nlocal; i++)
     for (int k = 0; k < 6; k++) atom_stress[i][k] = c->array_atom[i][k];
   rezone_pending = true;
+  rezone_source = source;
   next_reneighbor = update->ntimestep + 1;
+}
+
+// grid cells whose centre lies in a discrete region now (regions may move): the oracle's boundaries
+std::vector<std::uint64_t> FixHybridMPMLiggghts::discrete_cells() const
+{
+  std::vector<std::uint64_t> cells;
+  std::vector<Region *> regions;
+  for (const auto &rid : opt->discrete_regions) {
+    regions.push_back(domain->regions[domain->find_region(rid.c_str())]);
+    regions.back()->prematch();
+  }
+  const auto &grid = transfer->grid();
+  for (std::size_t c = 0; c < zones.size() && !regions.empty(); ++c) {
+    const Vec3 x = coupler::cell_center<3>(grid, coupler::cell_coords<3>(grid, c));
+    for (Region *r : regions)
+      if (r->match(x[0], x[1], x[2])) {
+        cells.push_back(c);
+        break;
+      }
+  }
+  return cells;
 }
 
 void FixHybridMPMLiggghts::pre_exchange()
 {
   if (!rezone_pending || update->ntimestep != next_reneighbor) return;
-  rezone();
+  rezone(rezone_source);
   rezone_pending = false;
   converted = true;
 }
@@ -424,7 +459,7 @@ bool FixHybridMPMLiggghts::make_grain(const coupler::PlannedGrain<3> &p)
   return true;
 }
 
-void FixHybridMPMLiggghts::rezone()
+void FixHybridMPMLiggghts::rezone(int source)
 {
   for (int i = 0; i < atom->nlocal; i++)
     for (int a = 0; a < 3; a++)
@@ -441,7 +476,7 @@ void FixHybridMPMLiggghts::rezone()
   coupler::RezonePlan<3> plan;
   plan.grid = &transfer->grid();
   plan.header = step_header(coupler::kStepRezone);
-  plan.header.zone_source = coupler::kZonesGiven;
+  plan.header.zone_source = source;
   plan.oracle = &opt->oracle;
   if (!packing)
     packing.reset(new coupler::PackingTemplate<3>(
@@ -458,7 +493,7 @@ void FixHybridMPMLiggghts::rezone()
   atoms.remove = [&](const std::vector<char> &flags) {
     atom->nlocal = coupler::delete_flagged(flags, atom->nlocal, [&](int from, int to) { atom->avec->copy(from, to, 1); });
   };
-  atoms.discrete_cells = [] { return std::vector<std::uint64_t>(); };
+  atoms.discrete_cells = [&] { return discrete_cells(); };
   coupler::StepAck ack;
   coupler::RezoneCounts counts;
   const coupler::StepOutcome outcome = coupler::rezone_grains<3>(*session, world, plan, zones, atoms, support, ack, counts);
@@ -482,8 +517,12 @@ void FixHybridMPMLiggghts::rezone()
   const coupler::RezoneReport report =
       coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath.drift);
   coupler::rezone_totals(grains_before, grains_after, ack, before, after);
-  say(coupler::rezone_line(report));
-  say(coupler::rezone_totals_line(report.step, before, after));
+  // every rezone's lines with rezone_log full; the conversion's also by default (summary)
+  const bool conversion = source != coupler::kZonesOracle;
+  if (opt->rezone_log == coupler::RezoneLog::kFull || (opt->rezone_log == coupler::RezoneLog::kSummary && conversion)) {
+    say(coupler::rezone_line(report));
+    say(coupler::rezone_totals_line(report.step, before, after));
+  }
 }
 
 /* ----------------------------------------------------------------------
@@ -508,7 +547,14 @@ void FixHybridMPMLiggghts::end_of_step()
       v[i][a] += dv;
     }
   ledger->support_open += kicked;
-  if (update->ntimestep % opt->every == 0) exchange(false);
+  const bigint step = update->ntimestep;
+  if (opt->adaptive() && converted && (step + 1) % opt->adapt_every == 0) stress_compute()->addstep(step + 1);
+  if (step % opt->every != 0) return;
+  exchange(false);
+  // the zone oracle right after this exchange (the MPM process did not advance past it), unless
+  // the run ends here: the next run's setup reorders the atoms
+  if (opt->adaptive() && converted && step % opt->adapt_every == 0 && step < update->laststep)
+    schedule_rezone(coupler::kZonesOracle);
 }
 
 void FixHybridMPMLiggghts::post_run()

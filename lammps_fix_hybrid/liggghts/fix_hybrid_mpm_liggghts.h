@@ -10,6 +10,7 @@
 
 #include "fix.h"
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -75,15 +76,17 @@ class FixHybridMPMLiggghts : public Fix {
   char *stress_id;                                 // compute stress/atom for the Love-Weber stress
   bigint exchanges, coupled_grains, last_step, last_output_step, vector_step, clock_step;
   bool converted, rezone_pending, ledger_started;
-  int new_grain_mask;
+  int new_grain_mask, rezone_source;
   double polydispersity, continuum_start, clock_time, clock_dt;
   double vector_cache[33];
 
   void connect();
   void compute_zones();
   int zone_of(const double *x) const;
-  void schedule_conversion();
-  void rezone();
+  void schedule_rezone(int source);
+  class Compute *stress_compute() const;    // that compute; an error if it was deleted
+  std::vector<std::uint64_t> discrete_cells() const;
+  void rezone(int source);
   bool make_grain(const coupler::PlannedGrain<3> &planned);
   void exchange(bool force_output);
   double dem_time(bigint step) const;
