@@ -190,18 +190,15 @@ void FixHybridMPM::check(const coupler::StepOutcome &mine)
 
 void FixHybridMPM::write_restart(FILE *fp)
 {
-  double list[6];
-  int n = 0;
-  list[n++] = opt->cell;
-  list[n++] = static_cast<double>(exchanges + restart_exchanges);
-  list[n++] = static_cast<double>(opt->every);
-  list[n++] = converted ? 1.0 : 0.0;
-  list[n++] = dem_time();
-  list[n++] = static_cast<double>(update->ntimestep);
+  coupler::RestartRecord r;
+  r.cell = opt->cell, r.exchanges = exchanges + restart_exchanges, r.every = opt->every;
+  r.converted = converted, r.time = dem_time(), r.step = update->ntimestep;
+  double list[coupler::RestartRecord::kValues];
+  r.write(list);
   if (comm->me == 0) {
-    int size = n * sizeof(double);
+    int size = sizeof(list);
     fwrite(&size, sizeof(int), 1, fp);
-    fwrite(list, sizeof(double), n, fp);
+    fwrite(list, sizeof(double), coupler::RestartRecord::kValues, fp);
   }
 }
 
@@ -209,23 +206,17 @@ void FixHybridMPM::write_restart(FILE *fp)
 
 void FixHybridMPM::restart(char *buf)
 {
-  double *list = (double *) buf;
-  if (list[0] != opt->cell && comm->me == 0)
-    error->warning(FLERR, fmt::format("Fix hybrid/mpm: restart file has cell {}, the input says {}; using {}",
-                                      list[0], opt->cell, opt->cell));
-  restart_exchanges = static_cast<bigint>(list[1]);
-  clock_time = list[4];
-  clock_step = static_cast<bigint>(list[5]);
+  const coupler::RestartRecord r = coupler::RestartRecord::read(reinterpret_cast<double *>(buf));
+  const std::string warning = r.cell_warning(opt->cell);
+  if (!warning.empty() && comm->me == 0) error->warning(FLERR, warning);
+  restart_exchanges = r.exchanges;
+  clock_time = r.time;
+  clock_step = r.step;
   clock_dt = update->dt;
-  if (list[3] != 0.0) {
-    // grains already became points: the MPM process continues from the state saved with the file
-    converted = true;
-    restored = true;
-    if (opt->mpm_state_path.empty())
-      error->all(FLERR, "Fix hybrid/mpm: the restart file was written after grains became material points; "
-                        "add the keyword 'mpm_state FILE' with the MPM state written next to it "
-                        "(<restart file>.mpm.h5)");
-  }
+  // grains already became points: the MPM process continues from the state saved with the file
+  converted = restored = r.converted;
+  const std::string problem = r.state_problem(opt->mpm_state_path);
+  if (!problem.empty()) error->all(FLERR, problem);
 }
 
 /* ----------------------------------------------------------------------
@@ -249,9 +240,7 @@ void FixHybridMPM::state_request(int kind, const std::string &path)
   coupler::StepAck ack;
   check(session->state_request(step_header(kind), path, exchanges + restart_exchanges, zones, ack));
   *last_ack = ack;
-  if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: MPM state {} {} ({} material points)\n",
-                                    kind == coupler::kStepSave ? "saved to" : "loaded from", path, ack.points));
+  if (comm->me == 0) utils::logmesg(lmp, coupler::state_line(kind, path, ack.points) + "\n");
 }
 
 /* ----------------------------------------------------------------------
@@ -296,10 +285,7 @@ coupler::GrainArrays FixHybridMPM::arrays() const
 
 int FixHybridMPM::pack_restart(int i, double *buf)
 {
-  buf[0] = 5;    // values for this fix, count included (LAMMPS convention)
-  buf[1] = weight[i];
-  for (int a = 0; a < 3; a++) buf[2 + a] = support[i][a];
-  return 5;
+  return arrays().pack_restart(i, buf);
 }
 
 void FixHybridMPM::unpack_restart(int nlocal, int nth)
@@ -307,18 +293,17 @@ void FixHybridMPM::unpack_restart(int nlocal, int nth)
   double **extra = atom->extra;
   int m = 0;
   for (int i = 0; i < nth; i++) m += static_cast<int>(extra[nlocal][m]);
-  weight[nlocal] = extra[nlocal][m + 1];
-  for (int a = 0; a < 3; a++) support[nlocal][a] = extra[nlocal][m + 2 + a];
+  arrays().unpack_restart(nlocal, &extra[nlocal][m]);
 }
 
 int FixHybridMPM::size_restart(int /*nlocal*/)
 {
-  return 5;
+  return coupler::GrainArrays::kRestartValues;
 }
 
 int FixHybridMPM::maxsize_restart()
 {
-  return 5;
+  return coupler::GrainArrays::kRestartValues;
 }
 
 // end_of_step and post_run (fix_hybrid_mpm.cpp) exchange in 2D and 3D

@@ -14,6 +14,8 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO
+from hgtools.logs import thermo_tables
+from test_coupled_physics import liggghts_headers
 from test_coupled_launch import LAUNCH, STOP_WITHIN, env, output
 
 DECK = REPO / "input_decks" / "hybrid" / "momentum_3d.liggghts"
@@ -63,10 +65,9 @@ def sub(pattern: str, new: str):
 @pytest.mark.parametrize("edit, message", [
     (lambda _: DECK_2D, "LIGGGHTS runs are 3D only"),
     (sub(r"youngs 1.0e5$", "material spheres_3d"), "keyword material is not supported on LIGGGHTS yet"),
-    (sub(r"youngs 1.0e5$", "youngs 1.0e5 mpm_state state.h5"), "keyword mpm_state is not supported on LIGGGHTS yet"),
     (sub(r"^pair_style .*$\n^pair_coeff .*$", "pair_style soft 0.004\npair_coeff * * 1.0"),
      "pair style soft is not a granular one: use pair_style gran model hooke (or hertz) tangential history"),
-], ids=["2d", "material", "mpm_state", "pair_style"])
+], ids=["2d", "material", "pair_style"])
 def test_liggghts_refuses_what_it_does_not_support_naming_it(tmp_path, liggghts_hybrid, edit, message):
     deck = edited_deck(tmp_path, edit)
     proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "20", "-log", "none",
@@ -102,3 +103,44 @@ def test_liggghts_run_warns_that_the_time_step_is_the_users_to_check(tmp_path, l
     assert "handshake ok with LIGGGHTS 3.8.0" in text, text    # the MPM process names its host
     assert "fix hybrid/mpm: finished the coupled run after 10 exchange(s)" in text, text
     assert time.monotonic() - t0 < 60
+
+
+def test_liggghts_restart_continues_the_coupled_run(tmp_path, liggghts_hybrid):
+    """A coupled LIGGGHTS run that writes a restart file at step 30 (the MPM process saves its state
+    next to it) and a second job that reads both (keyword mpm_state) reach the same totals at step
+    60 as the uninterrupted run; without mpm_state the restarted job is refused, naming the keyword."""
+    full = DECK.read_text()
+    marker = "run             ${nsteps}"
+    assert marker in full
+    straight, restarted, refused = (tmp_path / name for name in ("straight", "restarted", "refused"))
+    for d in (straight, restarted, refused):
+        d.mkdir()
+    (straight / "deck.in").write_text(full.replace(marker, "run 30\nwrite_restart restart.bin\nrun 30\n"))
+    proc, _ = launch("--host", "liggghts", "-np", "2", "deck.in", "-log", "log.lammps", cwd=straight)
+    assert proc.returncode == 0, output(proc)
+    log_a = liggghts_headers((straight / "log.lammps").read_text(), full)
+    assert "MPM state saved to restart.bin.mpm.h5 (512 material points)" in log_a
+    # what LIGGGHTS's restart file does not keep: the settings, the material fixes, the pair style
+    kept_lines = [ln for ln in full.splitlines() if ln.startswith((
+        "variable every", "variable pic", "newton", "communicate", "fix             m", "pair_", "neighbor", "neigh_",
+        "timestep", "fix             integ", "region          core", "fix             couple", "thermo"))]
+    deck_b = "read_restart    restart.bin\n" + "\n".join(kept_lines) + "\nrun 30\n"
+    for d, state in ((restarted, " mpm_state restart.bin.mpm.h5"), (refused, "")):
+        for name in ("restart.bin", "restart.bin.mpm.h5"):
+            (d / name).write_bytes((straight / name).read_bytes())
+        (d / "deck.in").write_text(re.sub(r"^(fix\s+couple .*)$", r"\1" + state, deck_b, flags=re.M))
+    proc, _ = launch("--host", "liggghts", "-np", "2", "deck.in", "-log", "log.lammps", cwd=restarted)
+    assert proc.returncode == 0, output(proc)
+    log_b = liggghts_headers((restarted / "log.lammps").read_text(), full)
+    assert "MPM state loaded from restart.bin.mpm.h5 (512 material points)" in log_b
+    a = [r for r in thermo_tables(log_a)[-1] if r["Step"] == 60][-1]
+    b = [r for r in thermo_tables(log_b)[-1] if r["Step"] == 60][-1]
+    scale = a["f_couple[8]"] * 0.05
+    for col in ("f_couple[9]", "f_couple[10]", "f_couple[11]"):
+        assert abs(a[col] - b[col]) <= 1e-13 * scale, (col, a[col], b[col])
+    for col in ("f_couple[2]", "f_couple[3]", "f_couple[8]", "f_couple[5]"):
+        assert a[col] == pytest.approx(b[col], rel=1e-12), col
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", "deck.in", "-log", "none", cwd=refused)
+    assert proc.returncode != 0 and elapsed < STOP_WITHIN, output(proc)
+    assert "ERROR: Fix hybrid/mpm: the restart file was written after grains became material points; add the " \
+           "keyword 'mpm_state FILE'" in output(proc), output(proc)

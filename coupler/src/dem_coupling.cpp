@@ -313,6 +313,35 @@ template void zone_counts<2>(const GridGeometry<2> &, const std::vector<signed c
 template void zone_counts<3>(const GridGeometry<3> &, const std::vector<signed char> &, const double[3],
                              const double[3], std::int64_t[3]);
 
+void RestartRecord::write(double out[kValues]) const {
+  out[0] = cell, out[1] = static_cast<double>(exchanges), out[2] = static_cast<double>(every);
+  out[3] = converted ? 1.0 : 0.0, out[4] = time, out[5] = static_cast<double>(step);
+}
+
+RestartRecord RestartRecord::read(const double *in) {
+  RestartRecord r;
+  r.cell = in[0], r.exchanges = static_cast<std::int64_t>(in[1]), r.every = static_cast<int>(in[2]);
+  r.converted = in[3] != 0.0, r.time = in[4], r.step = static_cast<std::int64_t>(in[5]);
+  return r;
+}
+
+std::string RestartRecord::cell_warning(double input_cell) const {
+  if (cell == input_cell) return "";
+  return "Fix hybrid/mpm: restart file has cell " + shortest(cell) + ", the input says " + shortest(input_cell) +
+         "; using " + shortest(input_cell);
+}
+
+std::string RestartRecord::state_problem(const std::string &mpm_state_path) const {
+  if (!converted || !mpm_state_path.empty()) return "";
+  return "Fix hybrid/mpm: the restart file was written after grains became material points; add the keyword "
+         "'mpm_state FILE' with the MPM state written next to it (<restart file>.mpm.h5)";
+}
+
+std::string state_line(int kind, const std::string &path, std::int64_t points) {
+  return std::string("fix hybrid/mpm: MPM state ") + (kind == kStepSave ? "saved to " : "loaded from ") + path + " (" +
+         std::to_string(points) + " material points)";
+}
+
 MPI_Comm start_dem_job(int *argc, char ***argv, const char *program) {
   MPI_Init(argc, argv);
   int me = 0;

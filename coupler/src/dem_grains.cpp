@@ -102,6 +102,18 @@ int GrainArrays::unpack(int i, const double *buf) const {
   return kValues;
 }
 
+int GrainArrays::pack_restart(int i, double *buf) const {
+  buf[0] = kRestartValues;
+  buf[1] = weight[i];
+  for (int a = 0; a < 3; a++) buf[2 + a] = support[i][a];
+  return kRestartValues;
+}
+
+void GrainArrays::unpack_restart(int i, const double *values) const {
+  weight[i] = values[1];
+  for (int a = 0; a < 3; a++) support[i][a] = values[2 + a];
+}
+
 std::vector<int> supported_grains(double *const *support, int n) {
   std::vector<int> index;
   for (int i = 0; i < n; i++)

@@ -4,8 +4,8 @@
    The LIGGGHTS adapter of the coupling of docs/design.md section 5: the
    same options, handshake, exchange and rezone sequences as the LAMMPS fix
    (coupler/dem_coupling.hpp, coupler/dem_session.hpp), with LIGGGHTS's
-   atoms, regions and errors. What it does not do yet (restart files,
-   calibrated materials, 2D) it refuses with a clear error:
+   atoms, regions and errors. What it does not do yet (calibrated
+   materials, 2D) it refuses with a clear error:
    docs/fix_hybrid_mpm.md, "LIGGGHTS host".
 ------------------------------------------------------------------------- */
 
@@ -21,6 +21,7 @@
 #include "force.h"
 #include "memory.h"
 #include "modify.h"
+#include "output.h"
 #include "region.h"
 #include "universe.h"
 #include "update.h"
@@ -62,6 +63,20 @@ const char *kept(const std::string &text)
   return messages.back().c_str();
 }
 
+// LIGGGHTS 3.8 keeps Output's restart schedule private; the announced time of the next exchange
+// must not pass a restart file (its MPM state is that of the restart step): the members are
+// reached as liggghts_main.cpp reaches the style map, through explicit template instantiation
+using RestartFlagMember = bool Output::*;
+using NextRestartMember = bigint Output::*;
+template <RestartFlagMember Flag, NextRestartMember Next>
+struct OutputRestartAccess {
+  friend RestartFlagMember output_restart_flag() { return Flag; }
+  friend NextRestartMember output_next_restart() { return Next; }
+};
+RestartFlagMember output_restart_flag();
+NextRestartMember output_next_restart();
+template struct OutputRestartAccess<&Output::restart_flag, &Output::next_restart>;
+
 coupler::GridGeometry<3> box_grid(const Domain *domain, double cell)
 {
   return coupler::padded_grid<3>(Eigen::Map<const Vec3>(domain->boxlo), Eigen::Map<const Vec3>(domain->boxhi), cell);
@@ -80,7 +95,7 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), last_ack(new coupler::StepAck), ledger(new coupler::EnergyLedger), weight(NULL),
     support(NULL), atom_stress(NULL), stress_id(NULL), exchanges(0), coupled_grains(0), last_step(0),
     last_output_step(-1), vector_step(-1), clock_step(-1), converted(false), rezone_pending(false),
-    ledger_started(false), new_grain_mask(1), rezone_source(0), polydispersity(0.0), continuum_start(0.0), clock_time(0.0),
+    ledger_started(false), restored(false), state_loaded(false), restart_exchanges(0), new_grain_mask(1), rezone_source(0), polydispersity(0.0), continuum_start(0.0), clock_time(0.0),
     clock_dt(0.0)
 {
   static_assert(sizeof(vector_cache) / sizeof(vector_cache[0]) == coupler::kVecSize, "f_ID[] entries");
@@ -99,9 +114,6 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
   if (opt->material)
     fail("keyword material is not supported on LIGGGHTS yet (its calibrations are of LAMMPS's gran/hooke/history "
          "law): give the continuum's constants on the fix line");
-  if (!opt->mpm_state_path.empty())
-    fail("keyword mpm_state is not supported on LIGGGHTS yet: restart files of a coupled LIGGGHTS run do not hold "
-         "the coupling's state");
 
   nevery = 1;              // the support force acts every step; exchanges every `every` steps
   scalar_flag = 1;         // f_ID = number of completed exchanges
@@ -113,10 +125,13 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
   force_reneighbor = 1;    // the conversion deletes grains at a pre_exchange
   next_reneighbor = -1;
   create_attribute = 1;    // new atoms get weight 1 and no support (set_arrays)
-  restart_global = 1;      // only to refuse a restart after the conversion (restart())
+  restart_global = 1;
+  restart_peratom = 1;
+  restart_file = 1;        // the MPM process saves its state next to every restart file
 
   grow_arrays(atom->nmax);
   atom->add_callback(0);    // Atom::grow
+  atom->add_callback(1);    // Atom::restart
   for (int i = 0; i < atom->nlocal; i++) set_arrays(i);
 
   if (domain->triclinic)
@@ -153,6 +168,7 @@ FixHybridMPMLiggghts::~FixHybridMPMLiggghts()
   if (stress_id && modify->find_compute(stress_id) >= 0) modify->delete_compute(stress_id);
   delete[] stress_id;
   atom->delete_callback(id, 0);
+  atom->delete_callback(id, 1);
   memory->destroy(weight), memory->destroy(support), memory->destroy(atom_stress);
 }
 
@@ -277,6 +293,8 @@ double FixHybridMPMLiggghts::next_exchange_time(bool force_output) const
   const bigint now = update->ntimestep, next = now + opt->every;
   if (force_output) return -1.0;
   if (opt->adaptive() && converted && now % opt->adapt_every == 0 && now < update->laststep) return -1.0;
+  const bigint restart_step = output->*output_next_restart();
+  if (output->*output_restart_flag() && restart_step >= now && restart_step < next) return -1.0;    // a restart file
   if (next <= update->laststep) return dem_time(next);
   if (opt->continuum.output_every > 0 && update->laststep > now) return dem_time(update->laststep);
   return -1.0;
@@ -328,6 +346,10 @@ void FixHybridMPMLiggghts::setup(int /*vflag*/)
   clock_dt = update->dt;
   if (!link) connect();
   if (zones.empty()) compute_zones();
+  if (restored && !state_loaded) {
+    state_request(coupler::kStepLoad, opt->mpm_state_path);
+    state_loaded = true;
+  }
   if (!ledger_started) {
     ledger->start = ledger->energy = grain_energy();
     continuum_start = last_ack->energy;
@@ -594,7 +616,7 @@ void FixHybridMPMLiggghts::exchange(bool force_output)
 
 double FixHybridMPMLiggghts::compute_scalar()
 {
-  return static_cast<double>(exchanges);
+  return static_cast<double>(exchanges + restart_exchanges);
 }
 
 double FixHybridMPMLiggghts::compute_vector(int n)
@@ -604,7 +626,7 @@ double FixHybridMPMLiggghts::compute_vector(int n)
     grain_totals(totals);
     ledger->sums(local);
     MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
-    coupler::thermo_vector(*last_ack, exchanges, coupled_grains, totals, sums, continuum_start, vector_cache);
+    coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start, vector_cache);
     vector_step = update->ntimestep;
   }
   return vector_cache[n];
@@ -616,25 +638,58 @@ double FixHybridMPMLiggghts::memory_usage()
 }
 
 /* ----------------------------------------------------------------------
-   restart files: the coupling's state is not saved on LIGGGHTS yet, so a
-   run restarted after the conversion (its points would be lost) is refused
+   restart files: the fix's record (coupler::RestartRecord), weight and
+   support per atom, and the MPM state the MPM process writes next to
+   every restart file after the conversion (keyword mpm_state reads it)
 ------------------------------------------------------------------------- */
 
 void FixHybridMPMLiggghts::write_restart(FILE *fp)
 {
-  const double list[1] = {converted ? 1.0 : 0.0};
-  if (comm->me == 0) {
-    const int size = sizeof(list);
-    fwrite(&size, sizeof(int), 1, fp);
-    fwrite(list, sizeof(double), 1, fp);
-  }
+  coupler::RestartRecord r;
+  r.cell = opt->cell, r.every = opt->every, r.converted = converted;
+  r.exchanges = exchanges + restart_exchanges, r.time = dem_time(update->ntimestep), r.step = update->ntimestep;
+  double list[coupler::RestartRecord::kValues];
+  r.write(list);
+  if (comm->me != 0) return;
+  const int size = sizeof(list);
+  fwrite(&size, sizeof(int), 1, fp);
+  fwrite(list, sizeof(double), coupler::RestartRecord::kValues, fp);
 }
 
 void FixHybridMPMLiggghts::restart(char *buf)
 {
-  if (reinterpret_cast<double *>(buf)[0] != 0.0)
-    fail("the restart file was written after grains became material points, and LIGGGHTS runs do not save the "
-         "MPM state yet: restart from a file written before the first run, or use lmp_hybrid (LAMMPS)");
+  const coupler::RestartRecord r = coupler::RestartRecord::read(reinterpret_cast<double *>(buf));
+  if (comm->me == 0 && !r.cell_warning(opt->cell).empty()) error->warning(FLERR, kept(r.cell_warning(opt->cell)));
+  restart_exchanges = r.exchanges;
+  clock_time = r.time, clock_step = r.step, clock_dt = update->dt;
+  converted = restored = r.converted;
+  if (!r.state_problem(opt->mpm_state_path).empty()) error->all(FLERR, kept(r.state_problem(opt->mpm_state_path)));
+}
+
+void FixHybridMPMLiggghts::write_restart_file(char *file)
+{
+  if (link && converted) state_request(coupler::kStepSave, std::string(file) + ".mpm.h5");
+}
+
+void FixHybridMPMLiggghts::state_request(int kind, const std::string &path)
+{
+  coupler::StepAck ack;
+  const coupler::StepOutcome outcome =
+      session->settle(session->state_request(step_header(kind), path, exchanges + restart_exchanges, zones, ack));
+  if (!outcome.ok()) fail(outcome.what);
+  *last_ack = ack;
+  say(coupler::state_line(kind, path, ack.points));
+}
+
+int FixHybridMPMLiggghts::pack_restart(int i, double *buf) { return arrays().pack_restart(i, buf); }
+int FixHybridMPMLiggghts::size_restart(int) { return coupler::GrainArrays::kRestartValues; }
+int FixHybridMPMLiggghts::maxsize_restart() { return coupler::GrainArrays::kRestartValues; }
+
+void FixHybridMPMLiggghts::unpack_restart(int nlocal, int nth)
+{
+  int m = 0;    // this fix's values follow those of the nth - 1 fixes before it, each count first
+  for (int k = 0; k < nth; k++) m += static_cast<int>(atom->extra[nlocal][m]);
+  arrays().unpack_restart(nlocal, &atom->extra[nlocal][m]);
 }
 
 /* ----------------------------------------------------------------------

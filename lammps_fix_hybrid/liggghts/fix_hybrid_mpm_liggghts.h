@@ -49,6 +49,7 @@ class FixHybridMPMLiggghts : public Fix {
   double memory_usage();
   void write_restart(FILE *);
   void restart(char *);
+  void write_restart_file(char *);
 
   // per-atom weight, support acceleration and stored stress: they travel with the atoms
   void grow_arrays(int);
@@ -56,6 +57,10 @@ class FixHybridMPMLiggghts : public Fix {
   void set_arrays(int);
   int pack_exchange(int, double *);
   int unpack_exchange(int, double *);
+  int pack_restart(int, double *);
+  void unpack_restart(int, int);
+  int size_restart(int);
+  int maxsize_restart();
 
   /// Creator for Modify's fix map (liggghts_hybrid registers it).
   static Fix *creator(LAMMPS *lmp, int narg, char **arg);
@@ -76,11 +81,14 @@ class FixHybridMPMLiggghts : public Fix {
   char *stress_id;                                 // compute stress/atom for the Love-Weber stress
   bigint exchanges, coupled_grains, last_step, last_output_step, vector_step, clock_step;
   bool converted, rezone_pending, ledger_started;
+  bool restored, state_loaded;    // restarted after the conversion: the MPM process loads its state
+  bigint restart_exchanges;       // exchanges read from a restart file
   int new_grain_mask, rezone_source;
   double polydispersity, continuum_start, clock_time, clock_dt;
   double vector_cache[33];
 
   void connect();
+  void state_request(int kind, const std::string &path);    // save or load the MPM state
   void compute_zones();
   int zone_of(const double *x) const;
   void schedule_rezone(int source);

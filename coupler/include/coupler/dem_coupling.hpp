@@ -149,6 +149,27 @@ void zone_counts(const GridGeometry<D> &grid, const std::vector<signed char> &zo
 /// "fix hybrid/mpm: N grid cells in the box: C continuum, H hybrid, D discrete"
 std::string zone_counts_line(const std::int64_t counts[3]);
 
+/// The fix's global record in a host's restart file: its cell, the exchanges so far, `every`,
+/// whether the conversion happened (the MPM state then lives in the file written next to the
+/// restart file), the coupling's clock.
+struct RestartRecord {
+  static constexpr int kValues = 6;
+  double cell = 0.0;
+  std::int64_t exchanges = 0;
+  int every = 1;
+  bool converted = false;
+  double time = 0.0;
+  std::int64_t step = 0;
+  void write(double out[kValues]) const;
+  static RestartRecord read(const double *in);
+  /// A warning if the file's cell differs from the input's ("" if not).
+  std::string cell_warning(double input_cell) const;
+  /// An error if the conversion happened and no MPM state is given ("" if fine).
+  std::string state_problem(const std::string &mpm_state_path) const;
+};
+/// "fix hybrid/mpm: MPM state saved to|loaded from PATH (N material points)"
+std::string state_line(int kind, const std::string &path, std::int64_t points);
+
 /// The start of a DEM program of the coupled MPMD job (lmp_hybrid, liggghts_hybrid): MPI_Init,
 /// MPI_COMM_WORLD split by colour (kDemColor; mpm_solver takes kMpmColor, so the host never
 /// sees the MPM ranks; run alone the split is a no-op), the MPI_Finalize hook installed with

@@ -72,6 +72,11 @@ struct GrainArrays {
   void reset(int i) const;       ///< a new atom: weight 1, no support, no stored stress
   int pack(int i, double *buf) const;
   int unpack(int i, const double *buf) const;
+  /// Restart files hold weight and support (a rezone left pending at the end of a run is
+  /// dropped): kRestartValues doubles, the count first (LAMMPS's convention).
+  static constexpr int kRestartValues = 1 + 1 + 3;
+  int pack_restart(int i, double *buf) const;
+  void unpack_restart(int i, const double *values) const;    ///< values: this fix's, count first
 };
 
 /// Local atoms with a non-zero support acceleration (after atoms were reordered).
