@@ -134,11 +134,8 @@ void FixHybridMPM::check_dem_timestep(const std::string &when)
 {
   std::string why;
   const double steps = dem_steps_per_contact(why);
-  if (steps >= opt->warn_steps_per_contact || steps >= 0.9 * fewest_steps_warned) return;
-  fewest_steps_warned = steps;
-  if (comm->me == 0)
-    error->warning(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s resolves the contacts poorly {}: {}",
-                                      update->dt, when, why));
+  if (coupler::warn_poor_step(steps, opt->warn_steps_per_contact, fewest_steps_warned) && comm->me == 0)
+    error->warning(FLERR, coupler::poor_step_warning(update->dt, when, why));
 }
 
 /* ----------------------------------------------------------------------

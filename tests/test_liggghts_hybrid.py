@@ -92,17 +92,54 @@ def test_liggghts_error_during_the_coupled_run_stops_the_mpm_process(tmp_path, l
     assert elapsed < STOP_WITHIN
 
 
-def test_liggghts_run_warns_that_the_time_step_is_the_users_to_check(tmp_path, liggghts_hybrid):
-    t0 = time.monotonic()
-    proc, _ = launch("--host", "liggghts", "-np", "1", str(DECK), "-var", "nsteps", "10", "-log", "none",
-                     timeout=60, cwd=tmp_path)
+# the momentum deck with LIGGGHTS's Young's-modulus models instead of hooke/stiffness
+ELASTIC = ("fix             m1 all property/global youngsModulus peratomtype 5e6\n"
+           "fix             m6 all property/global poissonsRatio peratomtype 0.3\n"
+           "fix             m7 all property/global coefficientRestitution peratomtypepair 1 0.5\n"
+           "fix             m8 all property/global characteristicVelocity scalar 0.1")
+
+
+def with_model(model: str, timestep: str):
+    def edit(text: str) -> str:
+        text = re.sub(r"^timestep .*$", f"timestep        {timestep}", text, flags=re.M)
+        if model == "hooke/stiffness":
+            return text
+        text = sub(r"^fix             m1 .*$", ELASTIC)(text)
+        return sub(r"model hooke/stiffness tangential", f"model {model} tangential")(text)
+    return edit
+
+
+@pytest.mark.parametrize("model, timestep, says", [
+    # kn = 2000 N/m, the lightest grains at their hybrid share 0.5 (4.19e-5 kg): tc = 3.21e-4 s
+    ("hooke/stiffness", "1.0e-5", "fix hybrid/mpm: DEM time step 1e-05 s: the stiffest contact (pair style gran model "
+                                  "hooke/stiffness: kn = 2000 N/m, kt = 571.4 N/m, gamma_n = 50 1/s; lightest grains "
+                                  "4.18879e-05 kg, at their share in hybrid cells) lasts tc = 0.000321489 s, 32.1 steps "
+                                  "per contact"),
+    ("hooke/stiffness", "5.0e-5", "WARNING: Fix hybrid/mpm: the time step 5e-05 s resolves the contacts poorly at the "
+                                  "start of the run"),
+    ("hooke/stiffness", "3.0e-4", "ERROR: Fix hybrid/mpm: the time step 0.0003 s is unstable (checked before the run)"),
+    # E = 5 MPa, nu = 0.3: twice the Rayleigh time (1.73e-4 s) is shorter than the Hertz time
+    ("hertz", "1.0e-5", "have the Hertz time 0.0007694 s at relative speed 0.168 m/s and the Rayleigh time 0.0001731 s"),
+    ("hooke", "1.0e-5", "(pair style gran model hooke, 4.189e-05 kg at their share in hybrid cells, E 5e+06 Pa"),
+    ("hertz", "4.0e-4", "ERROR: Fix hybrid/mpm: the time step 0.0004 s is unstable (checked before the run): the "
+                        "lightest grains (pair style gran model hertz"),
+])
+def test_liggghts_time_step_is_checked_against_its_contact_model(tmp_path, liggghts_hybrid, model, timestep, says):
+    """The DEM step against LIGGGHTS's contact models: hooke/stiffness as LAMMPS's gran/hooke/history
+    (its kn, kt, gamma_n), hooke and hertz through the Hertz and Rayleigh times of LIGGGHTS's fix
+    check/timestep/gran; fewer than pi/2 steps per contact are refused naming the safe step."""
+    deck = edited_deck(tmp_path, with_model(model, timestep))
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "10", "-log", "none",
+                           cwd=tmp_path)
     text = output(proc)
-    assert proc.returncode == 0, text
-    assert "WARNING: Fix hybrid/mpm does not check the DEM time step on LIGGGHTS: check it with " \
-           "fix check/timestep/gran" in text, text
-    assert "handshake ok with LIGGGHTS 3.8.0" in text, text    # the MPM process names its host
-    assert "fix hybrid/mpm: finished the coupled run after 10 exchange(s)" in text, text
-    assert time.monotonic() - t0 < 60
+    assert says in text, text
+    assert (proc.returncode != 0) == says.startswith("ERROR"), text
+    if proc.returncode != 0:
+        assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+        assert elapsed < STOP_WITHIN
+    else:
+        assert "fix hybrid/mpm: finished the coupled run after 10 exchange(s)" in text, text
+        assert "handshake ok with LIGGGHTS 3.8.0" in text, text    # the MPM process names its host
 
 
 def test_liggghts_restart_continues_the_coupled_run(tmp_path, liggghts_hybrid):

@@ -18,10 +18,12 @@
 #include "domain.h"
 #include "error.h"
 #include "fix_gravity.h"
+#include "fix_property_global.h"
 #include "force.h"
 #include "memory.h"
 #include "modify.h"
 #include "output.h"
+#include "pair_gran.h"
 #include "region.h"
 #include "universe.h"
 #include "update.h"
@@ -30,6 +32,7 @@
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_session.hpp"
+#include "coupler/dem_timestep.hpp"
 #include "coupler/enrichment.hpp"
 #include "coupler/fix_options.hpp"
 #include "coupler/protocol.hpp"
@@ -95,8 +98,8 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), last_ack(new coupler::StepAck), ledger(new coupler::EnergyLedger), weight(NULL),
     support(NULL), atom_stress(NULL), stress_id(NULL), exchanges(0), coupled_grains(0), last_step(0),
     last_output_step(-1), vector_step(-1), clock_step(-1), converted(false), rezone_pending(false),
-    ledger_started(false), restored(false), state_loaded(false), restart_exchanges(0), new_grain_mask(1), rezone_source(0), polydispersity(0.0), continuum_start(0.0), clock_time(0.0),
-    clock_dt(0.0)
+    ledger_started(false), timestep_checked(false), restored(false), state_loaded(false), restart_exchanges(0), new_grain_mask(1), rezone_source(0), polydispersity(0.0), continuum_start(0.0), clock_time(0.0),
+    clock_dt(0.0), fewest_steps_warned(kBig)
 {
   static_assert(sizeof(vector_cache) / sizeof(vector_cache[0]) == coupler::kVecSize, "f_ID[] entries");
   for (double &v : vector_cache) v = 0.0;
@@ -222,6 +225,97 @@ void FixHybridMPMLiggghts::init()
   if (update->whichflag == 1 && std::strcmp(update->integrate_style, "verlet") != 0)
     fail("needs run_style verlet");
   check_pair_style();
+  // the deck's step, before the coupling has changed any grain, is refused only where velocity
+  // Verlet cannot integrate the stiffest contact; later runs are checked as the rezones are
+  if (!converted) {
+    std::string why;
+    if (dem_steps_per_contact(why) < coupler::kUnstableStepsPerContact)
+      fail("the time step " + coupler::general(update->dt, 6) + " s is unstable (checked before the run): " + why);
+  }
+  check_dem_timestep("at the start of the run");
+}
+
+/* ----------------------------------------------------------------------
+   the DEM step against the contact model (docs/fix_hybrid_mpm.md, "DEM
+   time step"): steps per contact of the lightest grains (at their share
+   where the coupling splits grains); kBig for a model it cannot check.
+   hooke/stiffness: its kn, kt, gamma_n as the LAMMPS host checks
+   gran/hooke/history; hooke and hertz (Young's modulus): LIGGGHTS's Hertz
+   and Rayleigh times as its fix check/timestep/gran estimates them
+------------------------------------------------------------------------- */
+
+double FixHybridMPMLiggghts::dem_steps_per_contact(std::string &why)
+{
+  PairGran *pair = static_cast<PairGran *>(force->pair_match("gran", 0));
+  std::string model;
+  for (const char *m : {"hooke/stiffness", "hooke", "hertz"})
+    if (pair && model.empty() && pair->contact_match("normal", m)) model = m;
+  if (model.empty()) {
+    if (!timestep_checked && comm->me == 0)
+      error->warning(FLERR, "Fix hybrid/mpm checks the DEM time step for pair_style gran models hooke/stiffness, "
+                            "hooke and hertz only: check it yourself (fix check/timestep/gran reports the Rayleigh "
+                            "and Hertz times)");
+    timestep_checked = true;
+    return kBig;
+  }
+  // the lightest grain (at its share where the coupling splits grains), its radius, the fastest
+  const bool splits = opt->splits();
+  struct {
+    double mass;
+    int rank;
+  } mine = {kBig, comm->me}, lightest;
+  double radius = 0.0, speed_local = 0.0, speed = 0.0;
+  int type = 1;
+  for (int i = 0; i < atom->nlocal; i++) {
+    double m = atom->rmass[i];
+    if (splits && (atom->mask[i] & groupbit)) m = std::min(m, m / weight[i] * opt->continuum.grain_weight);
+    if (m < mine.mass) mine.mass = m, radius = atom->radius[i], type = atom->type[i];
+    const double *v = atom->v[i];
+    speed_local = std::max(speed_local, std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]));
+  }
+  MPI_Allreduce(&mine, &lightest, 1, MPI_DOUBLE_INT, MPI_MINLOC, world);
+  if (lightest.mass >= kBig) return kBig;
+  MPI_Allreduce(&speed_local, &speed, 1, MPI_DOUBLE, MPI_MAX, world);
+  double grain[2] = {radius, static_cast<double>(type)};
+  MPI_Bcast(grain, 2, MPI_DOUBLE, lightest.rank, world);
+  type = static_cast<int>(grain[1]);
+  const int n = atom->ntypes;
+  auto property = [&](const char *name, const char *kind, int len) -> const double * {
+    Fix *f = modify->find_fix_property(name, "property/global", kind, len, len, style, false);
+    if (!f) fail(std::string("pair_style gran model ") + model + " needs fix property/global " + name + " " + kind);
+    return static_cast<FixPropertyGlobal *>(f)->get_values();
+  };
+  coupler::DemStepCheck check;
+  if (model == "hooke/stiffness") {
+    // kn, kt, gamma_n of the lightest grain's own type pair; gamma_n is multiplied by m_eff
+    // (without absolute_damping), as LAMMPS's gran/hooke/history does
+    const int k = (type - 1) * n + (type - 1);
+    coupler::HookeanContact contact;
+    contact.kn = property("kn", "peratomtypepair", n)[k];
+    contact.kt = property("kt", "peratomtypepair", n)[k];
+    contact.gamman = property("gamman", "peratomtypepair", n)[k];
+    contact.m_eff = 0.5 * lightest.mass;
+    contact.inertia = opt->inertia;
+    check = coupler::check_dem_step("gran model hooke/stiffness", contact, lightest.mass, splits, update->dt);
+  } else {
+    check = coupler::check_elastic_step(model, grain[0], lightest.mass, property("youngsModulus", "peratomtype", n)[type - 1],
+                                        property("poissonsRatio", "peratomtype", n)[type - 1], 2.0 * speed, splits,
+                                        update->dt);
+  }
+  if (!timestep_checked) say(check.log_line(update->dt));
+  timestep_checked = true;
+  why = check.why(opt->warn_steps_per_contact);
+  return check.steps;
+}
+
+// grains the coupling made or rescaled may be lighter than any before, and their contacts faster:
+// the user is told (again whenever the figure drops by another 10 %)
+void FixHybridMPMLiggghts::check_dem_timestep(const std::string &when)
+{
+  std::string why;
+  if (coupler::warn_poor_step(dem_steps_per_contact(why), opt->warn_steps_per_contact, fewest_steps_warned) &&
+      comm->me == 0)
+    error->warning(FLERR, kept(coupler::poor_step_warning(update->dt, when, why)));
 }
 
 /* ----------------------------------------------------------------------
@@ -307,9 +401,13 @@ void FixHybridMPMLiggghts::connect()
   const coupler::GroupGrains gg = coupler::group_grains(grains(), atom->type, atom->ntypes, 3, world);
   new_grain_mask = coupler::apply_group_defaults(*opt, gg, groupbit, polydispersity);
   dem_gravity(opt->continuum.gravity);
-  // the agreement's relaxation time: LIGGGHTS's contact time is not known to the fix, so 10
-  // steps unless keyword relax gives it
-  opt->continuum.agreement_time = opt->relax_time < 0.0 ? 10.0 * update->dt : opt->relax_time;
+  // the agreement's relaxation time: half the stiffest contact's duration (10 steps where the
+  // contact time is unknown), unless keyword relax gives it
+  if (opt->relax_time < 0.0) {
+    std::string why;
+    const double steps = dem_steps_per_contact(why);
+    opt->continuum.agreement_time = 0.5 * (steps < kBig ? steps : 20.0) * update->dt;
+  } else opt->continuum.agreement_time = opt->relax_time;
   // "Version LIGGGHTS-PUBLIC 3.8.0, compiled ..." -> "LIGGGHTS 3.8.0" (the handshake's short text)
   std::string version(universe->version);
   version = version.substr(0, version.find(','));
@@ -329,9 +427,6 @@ void FixHybridMPMLiggghts::connect()
       " rank(s)): " + link->peer_info() + "; protocol " + std::to_string(coupler::kProtocolVersion) + ", release " +
       coupler::release_version() + ", host LIGGGHTS, cell " + coupler::shortest(opt->cell) + ", model " +
       coupler::model_name(opt->model) + ", exchange every " + std::to_string(opt->every) + " step(s)");
-  if (comm->me == 0)
-    error->warning(FLERR, "Fix hybrid/mpm does not check the DEM time step on LIGGGHTS: check it with "
-                          "fix check/timestep/gran (Rayleigh and Hertz times)");
 }
 
 void FixHybridMPMLiggghts::setup(int /*vflag*/)
@@ -545,6 +640,7 @@ void FixHybridMPMLiggghts::rezone(int source)
     say(coupler::rezone_line(report));
     say(coupler::rezone_totals_line(report.step, before, after));
   }
+  check_dem_timestep("after the rezone at step " + std::to_string(update->ntimestep));
 }
 
 /* ----------------------------------------------------------------------

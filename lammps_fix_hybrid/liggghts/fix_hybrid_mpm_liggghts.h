@@ -81,10 +81,12 @@ class FixHybridMPMLiggghts : public Fix {
   char *stress_id;                                 // compute stress/atom for the Love-Weber stress
   bigint exchanges, coupled_grains, last_step, last_output_step, vector_step, clock_step;
   bool converted, rezone_pending, ledger_started;
+  bool timestep_checked;          // the DEM time step was checked (and logged) once
   bool restored, state_loaded;    // restarted after the conversion: the MPM process loads its state
   bigint restart_exchanges;       // exchanges read from a restart file
   int new_grain_mask, rezone_source;
   double polydispersity, continuum_start, clock_time, clock_dt;
+  double fewest_steps_warned;     // steps per contact at the last warning
   double vector_cache[33];
 
   void connect();
@@ -107,6 +109,8 @@ class FixHybridMPMLiggghts : public Fix {
   double grain_energy() const;
   void dem_gravity(double *g) const;
   void check_pair_style() const;
+  double dem_steps_per_contact(std::string &why);    // of the stiffest contact (kBig: not checked)
+  void check_dem_timestep(const std::string &when);  // warns when the contacts are poorly resolved
   void say(const std::string &text) const;               // rank 0: screen and log file
   [[noreturn]] void fail(const std::string &why) const;    // error->all with "Fix hybrid/mpm: "
 };
