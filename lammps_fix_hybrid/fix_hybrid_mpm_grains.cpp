@@ -96,17 +96,8 @@ void FixHybridMPM::check_gravity() const
 {
   double now[3];
   dem_gravity(now);
-  const double *then = opt->continuum.gravity;
-  const double scale = std::max(std::sqrt(then[0] * then[0] + then[1] * then[1] + then[2] * then[2]),
-                                std::sqrt(now[0] * now[0] + now[1] * now[1] + now[2] * now[2]));
-  bool same = true;
-  for (int d = 0; d < 3; d++) same = same && std::fabs(now[d] - then[d]) <= 1e-12 * scale;    // round-off only
-  if (!same)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: gravity changed since the coupled run started: ({}, {}, {}) m/s^2 "
-                                  "then, ({}, {}, {}) now. The MPM process keeps the gravity of the handshake (and "
-                                  "the energy ledger its potential energy): keep the fix gravity commands unchanged "
-                                  "while fix hybrid/mpm is defined",
-                                  then[0], then[1], then[2], now[0], now[1], now[2]));
+  const std::string problem = coupler::gravity_change_problem(opt->continuum.gravity, now);
+  if (!problem.empty()) error->all(FLERR, problem);
 }
 
 /* ----------------------------------------------------------------------

@@ -181,3 +181,17 @@ def test_liggghts_restart_continues_the_coupled_run(tmp_path, liggghts_hybrid):
     assert proc.returncode != 0 and elapsed < STOP_WITHIN, output(proc)
     assert "ERROR: Fix hybrid/mpm: the restart file was written after grains became material points; add the " \
            "keyword 'mpm_state FILE'" in output(proc), output(proc)
+
+
+def test_liggghts_gravity_changed_between_runs_is_refused(tmp_path, liggghts_hybrid):
+    """The MPM process takes gravity once, at the handshake: a later run with gravity added is an
+    error naming both, and the MPM process is told."""
+    deck = edited_deck(tmp_path, lambda t: t + "\nfix grav all gravity 5.0 vector 0 -1 0\nrun 10\n")
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "20", "-var", "every", "10",
+                           "-log", "none")
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert ("ERROR: Fix hybrid/mpm: gravity changed since the coupled run started: (0, 0, 0) m/s^2 then, "
+            "(0, -5, 0) now") in text, text
+    assert "mpm_solver: error: LAMMPS stopped the coupled run after 2 exchange(s)" in text, text
+    assert elapsed < STOP_WITHIN

@@ -342,6 +342,18 @@ std::string state_line(int kind, const std::string &path, std::int64_t points) {
          std::to_string(points) + " material points)";
 }
 
+std::string gravity_change_problem(const double then[3], const double now[3]) {
+  const double scale = std::max(std::sqrt(then[0] * then[0] + then[1] * then[1] + then[2] * then[2]),
+                                std::sqrt(now[0] * now[0] + now[1] * now[1] + now[2] * now[2]));
+  bool same = true;
+  for (int d = 0; d < 3; d++) same = same && std::fabs(now[d] - then[d]) <= 1e-12 * scale;    // round-off only
+  if (same) return "";
+  auto vec = [](const double *g) { return "(" + shortest(g[0]) + ", " + shortest(g[1]) + ", " + shortest(g[2]) + ")"; };
+  return "Fix hybrid/mpm: gravity changed since the coupled run started: " + vec(then) + " m/s^2 then, " + vec(now) +
+         " now. The MPM process keeps the gravity of the handshake (and the energy ledger its potential energy): "
+         "keep the fix gravity commands unchanged while fix hybrid/mpm is defined";
+}
+
 MPI_Comm start_dem_job(int *argc, char ***argv, const char *program) {
   MPI_Init(argc, argv);
   int me = 0;

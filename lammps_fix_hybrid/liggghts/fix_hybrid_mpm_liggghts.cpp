@@ -440,6 +440,12 @@ void FixHybridMPMLiggghts::setup(int /*vflag*/)
   }
   clock_dt = update->dt;
   if (!link) connect();
+  else {    // gravity was sent at the handshake: it must not change between runs
+    double now[3];
+    dem_gravity(now);
+    const std::string problem = coupler::gravity_change_problem(opt->continuum.gravity, now);
+    if (!problem.empty()) error->all(FLERR, kept(problem));
+  }
   if (zones.empty()) compute_zones();
   if (restored && !state_loaded) {
     state_request(coupler::kStepLoad, opt->mpm_state_path);

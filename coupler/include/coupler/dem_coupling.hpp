@@ -170,6 +170,10 @@ struct RestartRecord {
 /// "fix hybrid/mpm: MPM state saved to|loaded from PATH (N material points)"
 std::string state_line(int kind, const std::string &path, std::int64_t points);
 
+/// The MPM process keeps the gravity of the handshake (and the energy ledger its potential
+/// energy): an error message if `now` differs from `then` beyond round-off, "" if not.
+std::string gravity_change_problem(const double then[3], const double now[3]);
+
 /// The start of a DEM program of the coupled MPMD job (lmp_hybrid, liggghts_hybrid): MPI_Init,
 /// MPI_COMM_WORLD split by colour (kDemColor; mpm_solver takes kMpmColor, so the host never
 /// sees the MPM ranks; run alone the split is a no-op), the MPI_Finalize hook installed with
