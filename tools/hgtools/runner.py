@@ -131,25 +131,33 @@ def run_mpm(scene: Path, *args: str, threads: int | None = None, timeout: float 
 class Forms:
     """The decks of one scene, under input_decks/<scene>/: the LAMMPS deck, its LIGGGHTS twin and
     the hybrid twin's include (the hybrid runs the LAMMPS deck with `hybrid 1` and `hdeck` the
-    include; None: the deck holds its hybrid twin itself)."""
+    include; None: the deck holds its hybrid twin itself); hybrid_liggghts: the LIGGGHTS-hosted
+    hybrid twin's include (code hybrid_liggghts runs the LIGGGHTS deck with it)."""
     scene: str
     lammps: str = "dem_3d.lmp"
     liggghts: str | None = "liggghts_3d.in"
     hybrid: str | None = "hybrid_3d.lmp"
+    hybrid_liggghts: str | None = None
 
     def deck(self, code: str) -> Path:
-        name = self.liggghts if code == "liggghts" else self.lammps
+        name = self.liggghts if code in ("liggghts", "hybrid_liggghts") else self.lammps
         return REPO / "input_decks" / self.scene / name
 
-    def hybrid_deck(self) -> Path:
-        return REPO / "input_decks" / self.scene / self.hybrid
+    def hybrid_deck(self, code: str = "hybrid") -> Path:
+        name = self.hybrid_liggghts if code == "hybrid_liggghts" else self.hybrid
+        if name is None:
+            raise ValueError(f"scene {self.scene} has no {code} twin")
+        return REPO / "input_decks" / self.scene / name
 
     def variables(self, code: str, variables: dict, hybrid_vars: dict | None = None) -> dict:
         """The deck variables of `code`: the hybrid twin's (hybrid 1, hdeck, then hybrid_vars, which
-        may override them) added for the hybrid."""
-        if code != "hybrid":
+        may override them) added for the hybrids."""
+        if code not in ("hybrid", "hybrid_liggghts"):
             return dict(variables)
-        twin = {"hybrid": 1} | ({"hdeck": self.hybrid_deck()} if self.hybrid else {})
+        if code == "hybrid_liggghts":    # always its own include (an error for a scene without one)
+            twin = {"hybrid": 1, "hdeck": self.hybrid_deck(code)}
+        else:
+            twin = {"hybrid": 1} | ({"hdeck": self.hybrid_deck()} if self.hybrid else {})
         return {**variables, **twin, **(hybrid_vars or {})}
 
     def run(self, code: str, variables: dict, log: Path, hybrid_vars: dict | None = None, **kwargs) -> Run:
