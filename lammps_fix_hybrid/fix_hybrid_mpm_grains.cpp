@@ -12,7 +12,6 @@
 #include "error.h"
 #include "force.h"
 #include "group.h"
-#include "math_const.h"
 #include "modify.h"
 #include "pair.h"
 #include "update.h"
@@ -33,7 +32,6 @@
 using namespace LAMMPS_NS;
 using namespace FixConst;
 using namespace LAMMPS_NS::hybrid_mpm;
-using MathConst::MY_PI;
 
 namespace {
 
@@ -195,26 +193,11 @@ void FixHybridMPM::apply_material()
   coupler::DeckContact deck;
   deck.dimension = domain->dimension;
   deck.friction = HookeanConstants::friction(pair);
-  deck.kn = hooke.kn;
-  deck.kt = hooke.kt;
-  deck.gamman = hooke.gamman;
+  deck.kn = hooke.kn, deck.kt = hooke.kt, deck.gamman = hooke.gamman;
   deck.gammat = HookeanConstants::tangential_damping(pair);
-  const double r = 0.5 * opt->continuum.grain_diameter;
-  deck.mean_mass = opt->continuum.grain_density * (domain->dimension == 2 ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r);
-  const std::string mismatch = coupler::contact_mismatch(m, deck);
-  if (!mismatch.empty())
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for another contact law ({}); "
-                                  "measure the continuum's constants for this one (docs/design.md section 4.6)",
-                                  m.path, mismatch));
-  coupler::apply_material(m, hooke.kn, opt->continuum.grain_diameter, opt->continuum);
-  if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: material {} ({}): Young's modulus {:.6g} Pa, Poisson's ratio "
-                                    "{:.3g}, friction angle {:.4g} deg, mu_s {:.4g}, mu_2 {:.4g}, I0 {:.4g}, "
-                                    "critical packing {:.4g}\n",
-                                    m.name, m.path, opt->continuum.youngs_modulus, opt->continuum.poisson_ratio,
-                                    opt->continuum.friction_angle_deg, opt->continuum.mu_s, opt->continuum.mu_2,
-                                    opt->continuum.I0,
-                                    opt->continuum.critical_packing));
+  const std::string problem = coupler::apply_deck_material(*opt, deck);
+  if (!problem.empty()) error->all(FLERR, problem);
+  if (comm->me == 0) utils::logmesg(lmp, coupler::material_line(*opt) + "\n");
 }
 
 double FixHybridMPM::solid_mass(double radius) const

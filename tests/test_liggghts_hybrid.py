@@ -5,6 +5,7 @@ tests are the LAMMPS host's, parametrised: tests/test_coupled_physics.py.)
 """
 from __future__ import annotations
 
+import math
 import re
 import subprocess
 import sys
@@ -16,7 +17,7 @@ import pytest
 from conftest import REPO
 from hgtools.logs import thermo_tables
 from test_coupled_physics import liggghts_headers
-from test_coupled_launch import LAUNCH, STOP_WITHIN, env, output
+from test_coupled_launch import LAUNCH, STOP_WITHIN, env, material_file, output
 
 DECK = REPO / "input_decks" / "hybrid" / "momentum_3d.liggghts"
 
@@ -64,10 +65,14 @@ def sub(pattern: str, new: str):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda _: DECK_2D, "LIGGGHTS runs are 3D only"),
-    (sub(r"youngs 1.0e5$", "material spheres_3d"), "keyword material is not supported on LIGGGHTS yet"),
+    # spheres_3d was calibrated for the silo's grains (restitution 0.5), not these
+    (sub(r"youngs 1.0e5$", "material spheres_3d"), "material " + str(REPO / "input_decks" / "materials" /
+                                                                      "spheres_3d.toml") +
+     " was calibrated for another contact law (restitution of a mean-size pair 0.988698 in the deck, 0.5 in the "
+     "calibration)"),
     (sub(r"^pair_style .*$\n^pair_coeff .*$", "pair_style soft 0.004\npair_coeff * * 1.0"),
      "pair style soft is not a granular one: use pair_style gran model hooke (or hertz) tangential history"),
-], ids=["2d", "material", "pair_style"])
+], ids=["2d", "material_of_another_law", "pair_style"])
 def test_liggghts_refuses_what_it_does_not_support_naming_it(tmp_path, liggghts_hybrid, edit, message):
     deck = edited_deck(tmp_path, edit)
     proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "20", "-log", "none",
@@ -195,3 +200,34 @@ def test_liggghts_gravity_changed_between_runs_is_refused(tmp_path, liggghts_hyb
             "(0, -5, 0) now") in text, text
     assert "mpm_solver: error: LAMMPS stopped the coupled run after 2 exchange(s)" in text, text
     assert elapsed < STOP_WITHIN
+
+
+def liggghts_material(path: Path) -> Path:
+    """A calibrated material for the momentum deck's contact law (hooke/stiffness: kn 2000 N/m,
+    kt 2/7 kn, gamma_n 50 1/s, gamma_t gamma_n / 2, friction 0.5; 4 mm grains of 2500 kg/m^3)."""
+    m_eff = 0.5 * 2500 * 4 / 3 * math.pi * 0.002 ** 3
+    zeta = 50 / (2 * math.sqrt(2000 / m_eff))
+    restitution = math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2))
+    return material_file(path, dimension=3, restitution=restitution)
+
+
+@pytest.mark.parametrize("model", ["hooke/stiffness", "hertz"])
+def test_liggghts_material_applies_to_its_linear_spring_dashpot_only(tmp_path, liggghts_hybrid, model):
+    """Keyword material: its calibrations are of a linear spring-dashpot, which LIGGGHTS's
+    hooke/stiffness is (its kn, kt, gamma_n, gamma_t, friction are checked against the
+    calibration); with the Hertz model the material is refused, naming both laws."""
+    path = liggghts_material(tmp_path / "m.toml")
+    deck = edited_deck(tmp_path, lambda t: sub(r"youngs 1.0e5$", f"material {path}")(with_model(model, "1.0e-5")(t)))
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "10", "-log", "none",
+                           cwd=tmp_path)
+    text = output(proc)
+    if model == "hertz":
+        assert proc.returncode != 0 and elapsed < STOP_WITHIN, text
+        assert (f"ERROR: Fix hybrid/mpm: material {path} was calibrated for pair style gran/hooke/history (a linear "
+                "spring-dashpot), the deck's contact model is gran model hertz") in text, text
+        return
+    assert proc.returncode == 0, text
+    m = re.search(r"fix hybrid/mpm: material test_grains \(\S+\): Young's modulus (\S+) Pa, Poisson's ratio (\S+), "
+                  r"friction angle (\S+) deg, mu_s ([0-9.e+-]+)", text)
+    assert m, text
+    assert [float(g) for g in m.groups()[1:]] == [0.2, 17.46, 0.3]

@@ -354,6 +354,28 @@ std::string gravity_change_problem(const double then[3], const double now[3]) {
          "keep the fix gravity commands unchanged while fix hybrid/mpm is defined";
 }
 
+std::string apply_deck_material(FixOptions &options, DeckContact deck) {
+  const CalibratedMaterial &m = *options.material;
+  constexpr double kPi = 3.14159265358979323846;
+  const double r = 0.5 * options.continuum.grain_diameter;
+  deck.mean_mass = options.continuum.grain_density * (deck.dimension == 2 ? kPi * r * r : 4.0 / 3.0 * kPi * r * r * r);
+  const std::string mismatch = contact_mismatch(m, deck);
+  if (!mismatch.empty())
+    return "Fix hybrid/mpm: material " + m.path + " was calibrated for another contact law (" + mismatch +
+           "); measure the continuum's constants for this one (docs/design.md section 4.6)";
+  apply_material(m, deck.kn, options.continuum.grain_diameter, options.continuum);
+  return "";
+}
+
+std::string material_line(const FixOptions &options) {
+  const CalibratedMaterial &m = *options.material;
+  const ContinuumSettings &c = options.continuum;
+  return "fix hybrid/mpm: material " + m.name + " (" + m.path + "): Young's modulus " + general(c.youngs_modulus, 6) +
+         " Pa, Poisson's ratio " + general(c.poisson_ratio, 3) + ", friction angle " + general(c.friction_angle_deg, 4) +
+         " deg, mu_s " + general(c.mu_s, 4) + ", mu_2 " + general(c.mu_2, 4) + ", I0 " + general(c.I0, 4) +
+         ", critical packing " + general(c.critical_packing, 4);
+}
+
 MPI_Comm start_dem_job(int *argc, char ***argv, const char *program) {
   MPI_Init(argc, argv);
   int me = 0;

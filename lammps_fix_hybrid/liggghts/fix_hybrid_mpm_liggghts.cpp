@@ -4,9 +4,9 @@
    The LIGGGHTS adapter of the coupling of docs/design.md section 5: the
    same options, handshake, exchange and rezone sequences as the LAMMPS fix
    (coupler/dem_coupling.hpp, coupler/dem_session.hpp), with LIGGGHTS's
-   atoms, regions and errors. What it does not do yet (calibrated
-   materials, 2D) it refuses with a clear error:
-   docs/fix_hybrid_mpm.md, "LIGGGHTS host".
+   atoms, regions and errors. What it does not do (2D, a calibrated
+   material for a contact law other than hooke/stiffness) it refuses with a
+   clear error: docs/fix_hybrid_mpm.md, "LIGGGHTS host".
 ------------------------------------------------------------------------- */
 
 #include "fix_hybrid_mpm_liggghts.h"
@@ -114,9 +114,6 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
     error->all(FLERR, kept("Illegal fix hybrid/mpm command: " + std::string(e.what())));
   }
   // what this host does not do yet: refused, not ignored
-  if (opt->material)
-    fail("keyword material is not supported on LIGGGHTS yet (its calibrations are of LAMMPS's gran/hooke/history "
-         "law): give the continuum's constants on the fix line");
 
   nevery = 1;              // the support force acts every step; exchanges every `every` steps
   scalar_flag = 1;         // f_ID = number of completed exchanges
@@ -244,12 +241,29 @@ void FixHybridMPMLiggghts::init()
    and Rayleigh times as its fix check/timestep/gran estimates them
 ------------------------------------------------------------------------- */
 
-double FixHybridMPMLiggghts::dem_steps_per_contact(std::string &why)
+// the normal contact model of pair_style gran the fix knows ("" for another)
+std::string FixHybridMPMLiggghts::contact_model() const
 {
   PairGran *pair = static_cast<PairGran *>(force->pair_match("gran", 0));
-  std::string model;
   for (const char *m : {"hooke/stiffness", "hooke", "hertz"})
-    if (pair && model.empty() && pair->contact_match("normal", m)) model = m;
+    if (pair && pair->contact_match("normal", m)) return m;
+  return "";
+}
+
+// a material value of fix property/global (peratomtype or peratomtypepair) for atom type `type`
+// (its pair with itself)
+double FixHybridMPMLiggghts::material_value(const char *name, bool pair, int type) const
+{
+  const int n = atom->ntypes;
+  const char *kind = pair ? "peratomtypepair" : "peratomtype";
+  Fix *f = modify->find_fix_property(name, "property/global", kind, n, pair ? n : 0, style, false);
+  if (!f) fail("pair_style gran model " + contact_model() + " needs fix property/global " + name + " " + kind);
+  return static_cast<FixPropertyGlobal *>(f)->get_values()[pair ? (type - 1) * n + (type - 1) : type - 1];
+}
+
+double FixHybridMPMLiggghts::dem_steps_per_contact(std::string &why)
+{
+  const std::string model = contact_model();
   if (model.empty()) {
     if (!timestep_checked && comm->me == 0)
       error->warning(FLERR, "Fix hybrid/mpm checks the DEM time step for pair_style gran models hooke/stiffness, "
@@ -279,28 +293,20 @@ double FixHybridMPMLiggghts::dem_steps_per_contact(std::string &why)
   double grain[2] = {radius, static_cast<double>(type)};
   MPI_Bcast(grain, 2, MPI_DOUBLE, lightest.rank, world);
   type = static_cast<int>(grain[1]);
-  const int n = atom->ntypes;
-  auto property = [&](const char *name, const char *kind, int len) -> const double * {
-    Fix *f = modify->find_fix_property(name, "property/global", kind, len, len, style, false);
-    if (!f) fail(std::string("pair_style gran model ") + model + " needs fix property/global " + name + " " + kind);
-    return static_cast<FixPropertyGlobal *>(f)->get_values();
-  };
   coupler::DemStepCheck check;
   if (model == "hooke/stiffness") {
     // kn, kt, gamma_n of the lightest grain's own type pair; gamma_n is multiplied by m_eff
     // (without absolute_damping), as LAMMPS's gran/hooke/history does
-    const int k = (type - 1) * n + (type - 1);
     coupler::HookeanContact contact;
-    contact.kn = property("kn", "peratomtypepair", n)[k];
-    contact.kt = property("kt", "peratomtypepair", n)[k];
-    contact.gamman = property("gamman", "peratomtypepair", n)[k];
+    contact.kn = material_value("kn", true, type);
+    contact.kt = material_value("kt", true, type);
+    contact.gamman = material_value("gamman", true, type);
     contact.m_eff = 0.5 * lightest.mass;
     contact.inertia = opt->inertia;
     check = coupler::check_dem_step("gran model hooke/stiffness", contact, lightest.mass, splits, update->dt);
   } else {
-    check = coupler::check_elastic_step(model, grain[0], lightest.mass, property("youngsModulus", "peratomtype", n)[type - 1],
-                                        property("poissonsRatio", "peratomtype", n)[type - 1], 2.0 * speed, splits,
-                                        update->dt);
+    check = coupler::check_elastic_step(model, grain[0], lightest.mass, material_value("youngsModulus", false, type),
+                                        material_value("poissonsRatio", false, type), 2.0 * speed, splits, update->dt);
   }
   if (!timestep_checked) say(check.log_line(update->dt));
   timestep_checked = true;
@@ -400,6 +406,7 @@ void FixHybridMPMLiggghts::connect()
 {
   const coupler::GroupGrains gg = coupler::group_grains(grains(), atom->type, atom->ntypes, 3, world);
   new_grain_mask = coupler::apply_group_defaults(*opt, gg, groupbit, polydispersity);
+  if (opt->material) apply_material();
   dem_gravity(opt->continuum.gravity);
   // the agreement's relaxation time: half the stiffest contact's duration (10 steps where the
   // contact time is unknown), unless keyword relax gives it
@@ -427,6 +434,30 @@ void FixHybridMPMLiggghts::connect()
       " rank(s)): " + link->peer_info() + "; protocol " + std::to_string(coupler::kProtocolVersion) + ", release " +
       coupler::release_version() + ", host LIGGGHTS, cell " + coupler::shortest(opt->cell) + ", model " +
       coupler::model_name(opt->model) + ", exchange every " + std::to_string(opt->every) + " step(s)");
+}
+
+/* ----------------------------------------------------------------------
+   the continuum's constants from the calibrated material (keyword material):
+   its calibrations are of a linear spring-dashpot, LIGGGHTS's hooke/stiffness
+------------------------------------------------------------------------- */
+
+void FixHybridMPMLiggghts::apply_material()
+{
+  if (contact_model() != "hooke/stiffness")
+    fail("material " + opt->material->path + " was calibrated for pair style " + opt->material->pair +
+         " (a linear spring-dashpot), the deck's contact model is " +
+         (contact_model().empty() ? std::string("another") : "gran model " + contact_model()) +
+         ": use pair_style gran model hooke/stiffness with its constants, or measure the continuum's constants for "
+         "this contact law (docs/design.md section 4.6)");
+  const int type = opt->grain_type;    // the grains' (the new grains' type: the group's smallest)
+  coupler::DeckContact deck;
+  deck.dimension = 3;
+  deck.friction = material_value("coefficientFriction", true, type);
+  deck.kn = material_value("kn", true, type), deck.kt = material_value("kt", true, type);
+  deck.gamman = material_value("gamman", true, type), deck.gammat = material_value("gammat", true, type);
+  const std::string problem = coupler::apply_deck_material(*opt, deck);
+  if (!problem.empty()) error->all(FLERR, kept(problem));
+  say(coupler::material_line(*opt));
 }
 
 void FixHybridMPMLiggghts::setup(int /*vflag*/)

@@ -109,6 +109,9 @@ class FixHybridMPMLiggghts : public Fix {
   double grain_energy() const;
   void dem_gravity(double *g) const;
   void check_pair_style() const;
+  std::string contact_model() const;    // hooke/stiffness, hooke, hertz or "" (another)
+  double material_value(const char *name, bool pair, int type) const;    // fix property/global
+  void apply_material();                // keyword material (hooke/stiffness only)
   double dem_steps_per_contact(std::string &why);    // of the stiffest contact (kBig: not checked)
   void check_dem_timestep(const std::string &when);  // warns when the contacts are poorly resolved
   void say(const std::string &text) const;               // rank 0: screen and log file

@@ -174,6 +174,13 @@ std::string state_line(int kind, const std::string &path, std::int64_t points);
 /// energy): an error message if `now` differs from `then` beyond round-off, "" if not.
 std::string gravity_change_problem(const double then[3], const double now[3]);
 
+/// The continuum's constants from the calibrated material (keyword material) for the deck's
+/// contact law `deck` (its mean_mass from the grains' mean diameter and density): an error
+/// message if the material was calibrated for another law, "" when the constants were set.
+std::string apply_deck_material(FixOptions &options, DeckContact deck);
+/// "fix hybrid/mpm: material NAME (PATH): Young's modulus ... Pa, ..., critical packing ..."
+std::string material_line(const FixOptions &options);
+
 /// The start of a DEM program of the coupled MPMD job (lmp_hybrid, liggghts_hybrid): MPI_Init,
 /// MPI_COMM_WORLD split by colour (kDemColor; mpm_solver takes kMpmColor, so the host never
 /// sees the MPM ranks; run alone the split is a no-op), the MPI_Finalize hook installed with
