@@ -31,6 +31,7 @@
 #include "version.h"
 
 #include "coupler/coupling_timer.hpp"
+#include "coupler/dem_coupling.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_session.hpp"
 #include "coupler/fix_options.hpp"
@@ -46,7 +47,6 @@
 using namespace LAMMPS_NS;
 using namespace FixConst;
 using namespace LAMMPS_NS::hybrid_mpm;
-using coupler::kSmallestCellInGrains;    // tuned constants: coupler/tuning.hpp
 
 
 /* ---------------------------------------------------------------------- */
@@ -127,15 +127,10 @@ FixHybridMPM::~FixHybridMPM()
   delete[] stress_id;
   if (!link) return;
   // normal end of the coupled run (unfix, clear, end of input): the MPM process exits 0
-  try {
-    link->finish(last_step);
-    if (comm->me == 0)
-      utils::logmesg(lmp, fmt::format("fix hybrid/mpm: finished the coupled run after {} exchange(s)\n",
-                                      link->exchanges()));
-  } catch (const coupler::PeerError &e) {
-    if (comm->me == 0) error->warning(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
-  }
-  coupler::set_peer(nullptr);
+  std::string warning;
+  const std::string line = coupler::finish_coupled_run(*link, last_step, warning);
+  if (comm->me == 0 && !line.empty()) utils::logmesg(lmp, line + "\n");
+  if (comm->me == 0 && !warning.empty()) error->warning(FLERR, "Fix hybrid/mpm: " + warning);
   session.reset();
   link.reset();
 }
@@ -222,39 +217,14 @@ void FixHybridMPM::connect()
   grain_defaults();
   if (opt->material) apply_material();
   // the grid: the fix line's cell, or one chosen from the grains (and the oracle's defaults from it)
+  std::string problem;
   try {
-    const bool sized = group->count(igroup) > 0 || opt->diameter_given;    // else no size to choose from
-    const std::string grid =
-        coupler::resolve_grid(*opt, domain->dimension, sized ? opt->continuum.grain_diameter : 0.0);
+    const std::string grid = coupler::grid_of_run(*opt, domain->dimension, group->count(igroup), problem);
     if (comm->me == 0) utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {}\n", grid));
   } catch (const coupler::OptionError &e) {
     illegal(e.what());
   }
-  // With cells under 2 grain diameters the oracle's packing fraction per cell counts one or two
-  // grains and a cell's rests land on a few points: a published 2D collapse with 1.74 d cells
-  // went non-finite as its continuum shrank (issue 14), while the same scene ran with 5 d cells.
-  // (2 % slack: a deck's cell of 2 nominal diameters passes whatever its grains' sampled mean)
-  if (opt->adapt_every > 0 && opt->cell < 0.98 * kSmallestCellInGrains * opt->continuum.grain_diameter)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: cell {} is under {} grain diameters (mean diameter {:.4g}): adaptive "
-                                  "zones need cells that hold several grains. Use cell {:.4g} or more",
-                                  opt->cell, kSmallestCellInGrains, opt->continuum.grain_diameter,
-                                  kSmallestCellInGrains * opt->continuum.grain_diameter));
-  coupler::Hello hello;
-  coupler::set_text(hello.host, fmt::format("LAMMPS {}", lmp->version));
-  coupler::set_text(hello.units, update->unit_style);
-  hello.dimension = domain->dimension;
-  hello.model = opt->model;
-  hello.mpm_every = opt->every;
-  hello.cell = opt->cell;
-  hello.dt = update->dt;
-  hello.reply_timeout = opt->reply_timeout;
-  hello.idle_timeout = opt->idle_timeout;
-  for (int d = 0; d < 3; d++) {
-    hello.box_lo[d] = domain->boxlo[d];
-    hello.box_hi[d] = domain->boxhi[d];
-  }
-  hello.step = update->ntimestep;
-  hello.time = dem_time();
+  if (!problem.empty()) error->all(FLERR, "Fix hybrid/mpm: " + problem);
   // gravity of the grains acts on the continuum too (and sets the energy ledger's potential
   // energy); read once here, checked at every later run's setup
   dem_gravity(opt->continuum.gravity);
@@ -265,15 +235,10 @@ void FixHybridMPM::connect()
     const double steps = dem_steps_per_contact(why);
     opt->continuum.agreement_time = 0.5 * (steps < BIG ? steps : 20.0) * update->dt;
   } else opt->continuum.agreement_time = opt->relax_time;
-  hello.continuum = opt->continuum;
-  for (int d = 0; d < 3; d++)
-    for (int side = 0; side < 2; side++) {
-      const double v = container_edge(d, side);
-      if (v < domain->boxlo[d] || v > domain->boxhi[d])
-        error->all(FLERR, fmt::format("Fix hybrid/mpm: container {} {} = {} lies outside the box ({} to {})",
-                                      "xyz"[d], side ? "hi" : "lo", v, domain->boxlo[d], domain->boxhi[d]));
-      (side ? hello.continuum.container_hi : hello.continuum.container_lo)[d] = v;
-    }
+  const coupler::Hello hello =
+      coupler::make_hello(*opt, fmt::format("LAMMPS {}", lmp->version), update->unit_style, domain->dimension,
+                          update->dt, domain->boxlo, domain->boxhi, update->ntimestep, dem_time(), problem);
+  if (!problem.empty()) error->all(FLERR, "Fix hybrid/mpm: " + problem);
 
   try {
     link = coupler::connect_dem(world, hello);    // collective over world, same outcome on all ranks

@@ -29,9 +29,11 @@ struct StepOutcome;
 struct GrainRecord;
 struct ContinuumSettings;
 struct StepAck;
+template <int D> struct PlannedGrain;
 struct StepHeader;
 struct NodeUpdate;
 struct GrainView;
+struct GrainArrays;
 template <int D> struct GridGeometry;
 template <int D> struct NodeMomentum;
 template <int D> class GrainTransfer;
@@ -105,6 +107,7 @@ class FixHybridMPM : public Fix {
   // of a moving cell its weight times this)
   double solid_mass(double radius) const;
   coupler::GrainRules grain_rules() const;    // solid density and inertia of the grains
+  coupler::GrainArrays arrays() const;        // weight, support, atom_stress (coupler/dem_grains.hpp)
   coupler::DemGrains grains() const;          // this rank's atoms as the coupler sees them (coupler/dem_grains.hpp)
   double **support;                       // per-atom acceleration from the continuum until the next exchange
   std::vector<int> supported;             // local atoms with a support acceleration (valid until reneighboring)
@@ -163,8 +166,7 @@ class FixHybridMPM : public Fix {
 
   void connect();
   template <int D> void rezone(int source);
-  template <int D> bigint make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
-                                      std::map<std::size_t, coupler::GrainSums<D>> &sums);
+  template <int D> bool make_grain(const coupler::PlannedGrain<D> &planned);
   template <int D> const coupler::PackingTemplate<D> &packing_template();
   void schedule_rezone(int source);
   double dem_steps_per_contact(std::string &why);
@@ -173,9 +175,6 @@ class FixHybridMPM : public Fix {
   template <int D> void exchange(bool force_output);
   void check_finite_grains(const std::string &when);
   template <int D> coupler::GrainTransfer<D> &transfer();
-  template <int D>
-  void apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
-                     const std::vector<int> &index);
   void collect_supported();
   std::vector<coupler::GrainRecord> frame_grains() const;    // this rank's grains for an output frame
   void load_mpm_state();

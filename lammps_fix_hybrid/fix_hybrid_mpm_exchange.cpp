@@ -17,6 +17,7 @@
 #include "utils.h"
 
 #include "coupler/coupling_timer.hpp"
+#include "coupler/dem_coupling.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_session.hpp"
@@ -108,61 +109,26 @@ void FixHybridMPM::exchange(bool force_output)
 {
   const double start = MPI_Wtime();
   check_finite_grains("before the exchange");
-  double **x = atom->x, **v = atom->v;
-  double *rmass = atom->rmass;
-
-  // coupled grains: hybrid grains, and any grain of the group inside a hybrid or continuum cell
-  const std::vector<int> index = coupler::coupled_grains(grains(), [&](const double *xi) { return zone_of(xi); });
-  std::vector<double> xs, vs, ms;
-  for (int i : index) {
-    xs.insert(xs.end(), x[i], x[i] + 3);
-    vs.insert(vs.end(), v[i], v[i] + 3);
-    ms.push_back(rmass[i]);
-  }
-  coupler::GrainView view;
-  view.count = index.size();
-  view.x = xs.data();
-  view.v = vs.data();
-  view.mass = ms.data();
   close_dem_bracket();
-  const auto &nodes = transfer<D>().to_nodes(view);
-  std::vector<coupler::NodeRecord> records(nodes.size());
-  for (std::size_t k = 0; k < nodes.size(); ++k) {
-    records[k].node = nodes[k].node;
-    records[k].mass = nodes[k].mass;
-    for (int a = 0; a < D; ++a) records[k].momentum[a] = nodes[k].momentum[a];
-  }
-  bigint n_coupled_local = static_cast<bigint>(index.size()), n_coupled = 0;
-  MPI_Allreduce(&n_coupled_local, &n_coupled, 1, MPI_LMP_BIGINT, MPI_SUM, world);
-  coupled_grains = n_coupled;
+  // coupled grains: hybrid grains, and any grain of the group inside a hybrid or continuum cell
+  const coupler::DemGrains g = grains();
+  const std::vector<int> index = coupler::coupled_grains(g, [&](const double *xi) { return zone_of(xi); });
 
-  const bool output_frame =
-      opt->continuum.output_every > 0 && (force_output || (exchanges % opt->continuum.output_every) == 0);
-  if (output_frame) last_output_step = update->ntimestep;
   coupler::StepHeader h = step_header(coupler::kStepCouple);
-  h.output = output_frame ? 1 : 0;
-  h.n_grains = n_coupled;
+  h.output = coupler::output_frame_due(opt->continuum.output_every, exchanges, force_output) ? 1 : 0;
+  if (h.output) last_output_step = update->ntimestep;
   h.next_time = next_exchange_time(force_output);
   coupler::StepAck ack;
+  coupler::ExchangeTally tally;
   // the session's round trip is the wait for the MPM process, less the grains' updates and the
   // output frame it calls back for
-  double applying = 0.0, framing = 0.0;
   const double sent = MPI_Wtime();
-  const coupler::StepOutcome outcome = session->exchange(
-      h, records,
-      [&](const std::vector<coupler::NodeUpdate> &updates) {
-        const double t0 = MPI_Wtime();
-        apply_updates<D>(view, updates, index);
-        applying += MPI_Wtime() - t0;
-      },
-      [&] {
-        const double t0 = MPI_Wtime();
-        auto frame = frame_grains();
-        framing += MPI_Wtime() - t0;
-        return frame;
-      },
-      ack);
+  const coupler::StepOutcome outcome =
+      coupler::exchange_grains<D>(*session, world, transfer<D>(), g, index, h, opt->continuum.pic, support, supported,
+                                  [&] { return frame_grains(); }, ack, tally);
   const double replied = MPI_Wtime();
+  coupled_grains = tally.coupled;
+  ledger->add_agreement(tally.kicked);
   last_step = update->ntimestep;
   check(outcome);
 
@@ -170,48 +136,12 @@ void FixHybridMPM::exchange(bool force_output)
   exchanges++;
   link->count_exchange();
   const double end = MPI_Wtime();
-  charge(coupler::kTimeMpmWait, replied - sent - applying - framing);
-  charge(coupler::kTimeApply, applying);
-  charge(coupler::kTimeOutput, framing);
+  charge(coupler::kTimeMpmWait, replied - sent - tally.applying - tally.framing);
+  charge(coupler::kTimeApply, tally.applying);
+  charge(coupler::kTimeOutput, tally.framing);
   charge(coupler::kTimeExchange, (end - start) - (replied - sent));
   run_timing->exchanges++;
   all_timing->exchanges++;
-}
-
-/* ----------------------------------------------------------------------
-   grain velocity updates from the agreed node velocities (coupler rule)
-------------------------------------------------------------------------- */
-
-template <int D>
-void FixHybridMPM::apply_updates(const coupler::GrainView &view, const std::vector<coupler::NodeUpdate> &updates,
-                                 const std::vector<int> &index)
-{
-  std::vector<coupler::AgreedNode<D>> agreed(updates.size());
-  for (std::size_t k = 0; k < updates.size(); ++k)
-    for (int a = 0; a < D; ++a) {
-      agreed[k].velocity[a] = updates[k].velocity[a];
-      agreed[k].impulse_per_mass[a] = updates[k].impulse_per_mass[a];
-      agreed[k].support[a] = updates[k].support[a];
-    }
-  std::vector<double> dv(index.size() * D), accel(index.size() * D);
-  transfer<D>().velocity_updates(view, agreed, opt->continuum.pic, dv.data(), accel.data());
-  double **v = atom->v;
-  const double *rmass = atom->rmass;
-  for (int i : supported) support[i][0] = support[i][1] = support[i][2] = 0.0;
-  supported.clear();
-  double kicked = 0.0;    // the kinetic energy the agreement adds to the grains (energy ledger)
-  for (std::size_t g = 0; g < index.size(); ++g) {
-    bool any = false;
-    for (int a = 0; a < D; ++a) {
-      const double dva = dv[g * D + a], va = v[index[g]][a];
-      kicked += rmass[index[g]] * (va + 0.5 * dva) * dva;
-      v[index[g]][a] += dva;
-      support[index[g]][a] = accel[g * D + a];
-      any = any || accel[g * D + a] != 0.0;
-    }
-    if (any) supported.push_back(index[g]);
-  }
-  ledger->add_agreement(kicked);
 }
 
 /* ----------------------------------------------------------------------
@@ -220,9 +150,7 @@ void FixHybridMPM::apply_updates(const coupler::GrainView &view, const std::vect
 
 void FixHybridMPM::collect_supported()
 {
-  supported.clear();
-  for (int i = 0; i < atom->nlocal; i++)
-    if (support[i][0] != 0.0 || support[i][1] != 0.0 || support[i][2] != 0.0) supported.push_back(i);
+  supported = coupler::supported_grains(support, atom->nlocal);
 }
 
 void FixHybridMPM::setup_post_neighbor()
@@ -241,18 +169,7 @@ void FixHybridMPM::post_neighbor()
 
 std::vector<coupler::GrainRecord> FixHybridMPM::frame_grains() const
 {
-  const int nlocal = atom->nlocal;
-  std::vector<coupler::GrainRecord> grains(nlocal);
-  for (int i = 0; i < nlocal; i++) {
-    auto &g = grains[i];
-    g.id = atom->tag[i];
-    for (int a = 0; a < 3; a++) g.x[a] = atom->x[i][a], g.v[a] = atom->v[i][a];
-    g.radius = atom->radius[i];
-    g.mass = atom->rmass[i];
-    g.weight = weight[i];
-    g.zone = zone_of(atom->x[i]);
-  }
-  return grains;
+  return coupler::frame_records(grains(), atom->tag, [&](const double *x) { return zone_of(x); });
 }
 
 /* ----------------------------------------------------------------------
@@ -273,18 +190,15 @@ void FixHybridMPM::check(const coupler::StepOutcome &mine)
 
 void FixHybridMPM::write_restart(FILE *fp)
 {
-  double list[6];
-  int n = 0;
-  list[n++] = opt->cell;
-  list[n++] = static_cast<double>(exchanges + restart_exchanges);
-  list[n++] = static_cast<double>(opt->every);
-  list[n++] = converted ? 1.0 : 0.0;
-  list[n++] = dem_time();
-  list[n++] = static_cast<double>(update->ntimestep);
+  coupler::RestartRecord r;
+  r.cell = opt->cell, r.exchanges = exchanges + restart_exchanges, r.every = opt->every;
+  r.converted = converted, r.time = dem_time(), r.step = update->ntimestep;
+  double list[coupler::RestartRecord::kValues];
+  r.write(list);
   if (comm->me == 0) {
-    int size = n * sizeof(double);
+    int size = sizeof(list);
     fwrite(&size, sizeof(int), 1, fp);
-    fwrite(list, sizeof(double), n, fp);
+    fwrite(list, sizeof(double), coupler::RestartRecord::kValues, fp);
   }
 }
 
@@ -292,25 +206,17 @@ void FixHybridMPM::write_restart(FILE *fp)
 
 void FixHybridMPM::restart(char *buf)
 {
-  double *list = (double *) buf;
-  // a cell the grains chose is the one the run started with (the grains have changed since)
-  if (opt->cell <= 0.0) opt->cell = list[0];
-  else if (list[0] != opt->cell && comm->me == 0)
-    error->warning(FLERR, fmt::format("Fix hybrid/mpm: restart file has cell {}, the input says {}; using {}",
-                                      list[0], opt->cell, opt->cell));
-  restart_exchanges = static_cast<bigint>(list[1]);
-  clock_time = list[4];
-  clock_step = static_cast<bigint>(list[5]);
+  const coupler::RestartRecord r = coupler::RestartRecord::read(reinterpret_cast<double *>(buf));
+  const std::string warning = r.take_cell(opt->cell);
+  if (!warning.empty() && comm->me == 0) error->warning(FLERR, warning);
+  restart_exchanges = r.exchanges;
+  clock_time = r.time;
+  clock_step = r.step;
   clock_dt = update->dt;
-  if (list[3] != 0.0) {
-    // grains already became points: the MPM process continues from the state saved with the file
-    converted = true;
-    restored = true;
-    if (opt->mpm_state_path.empty())
-      error->all(FLERR, "Fix hybrid/mpm: the restart file was written after grains became material points; "
-                        "add the keyword 'mpm_state FILE' with the MPM state written next to it "
-                        "(<restart file>.mpm.h5)");
-  }
+  // grains already became points: the MPM process continues from the state saved with the file
+  converted = restored = r.converted;
+  const std::string problem = r.state_problem(opt->mpm_state_path);
+  if (!problem.empty()) error->all(FLERR, problem);
 }
 
 /* ----------------------------------------------------------------------
@@ -334,9 +240,7 @@ void FixHybridMPM::state_request(int kind, const std::string &path)
   coupler::StepAck ack;
   check(session->state_request(step_header(kind), path, exchanges + restart_exchanges, zones, ack));
   *last_ack = ack;
-  if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: MPM state {} {} ({} material points)\n",
-                                    kind == coupler::kStepSave ? "saved to" : "loaded from", path, ack.points));
+  if (comm->me == 0) utils::logmesg(lmp, coupler::state_line(kind, path, ack.points) + "\n");
 }
 
 /* ----------------------------------------------------------------------
@@ -354,40 +258,34 @@ void FixHybridMPM::grow_arrays(int nmax)
 
 void FixHybridMPM::copy_arrays(int i, int j, int /*delflag*/)
 {
-  weight[j] = weight[i];
-  for (int a = 0; a < 3; a++) support[j][a] = support[i][a];
-  for (int k = 0; k < 6; k++) atom_stress[j][k] = atom_stress[i][k];
+  arrays().copy(i, j);
 }
 
 void FixHybridMPM::set_arrays(int i)
 {
-  weight[i] = 1.0;
-  support[i][0] = support[i][1] = support[i][2] = 0.0;
-  for (int k = 0; k < 6; k++) atom_stress[i][k] = 0.0;    // made after the stress was stored: none
+  arrays().reset(i);
 }
 
 int FixHybridMPM::pack_exchange(int i, double *buf)
 {
-  buf[0] = weight[i];
-  for (int a = 0; a < 3; a++) buf[1 + a] = support[i][a];
-  for (int k = 0; k < 6; k++) buf[4 + k] = atom_stress[i][k];
-  return kPerAtomValues;
+  return arrays().pack(i, buf);
 }
 
 int FixHybridMPM::unpack_exchange(int nlocal, double *buf)
 {
-  weight[nlocal] = buf[0];
-  for (int a = 0; a < 3; a++) support[nlocal][a] = buf[1 + a];
-  for (int k = 0; k < 6; k++) atom_stress[nlocal][k] = buf[4 + k];
-  return kPerAtomValues;
+  return arrays().unpack(nlocal, buf);
+}
+
+coupler::GrainArrays FixHybridMPM::arrays() const
+{
+  coupler::GrainArrays a;
+  a.weight = weight, a.support = support, a.stress = atom_stress;
+  return a;
 }
 
 int FixHybridMPM::pack_restart(int i, double *buf)
 {
-  buf[0] = 5;    // values for this fix, count included (LAMMPS convention)
-  buf[1] = weight[i];
-  for (int a = 0; a < 3; a++) buf[2 + a] = support[i][a];
-  return 5;
+  return arrays().pack_restart(i, buf);
 }
 
 void FixHybridMPM::unpack_restart(int nlocal, int nth)
@@ -395,18 +293,17 @@ void FixHybridMPM::unpack_restart(int nlocal, int nth)
   double **extra = atom->extra;
   int m = 0;
   for (int i = 0; i < nth; i++) m += static_cast<int>(extra[nlocal][m]);
-  weight[nlocal] = extra[nlocal][m + 1];
-  for (int a = 0; a < 3; a++) support[nlocal][a] = extra[nlocal][m + 2 + a];
+  arrays().unpack_restart(nlocal, &extra[nlocal][m]);
 }
 
 int FixHybridMPM::size_restart(int /*nlocal*/)
 {
-  return 5;
+  return coupler::GrainArrays::kRestartValues;
 }
 
 int FixHybridMPM::maxsize_restart()
 {
-  return 5;
+  return coupler::GrainArrays::kRestartValues;
 }
 
 // end_of_step and post_run (fix_hybrid_mpm.cpp) exchange in 2D and 3D

@@ -12,7 +12,6 @@
 #include "error.h"
 #include "force.h"
 #include "group.h"
-#include "math_const.h"
 #include "modify.h"
 #include "pair.h"
 #include "update.h"
@@ -20,6 +19,7 @@
 
 #include "GRANULAR/pair_gran_hooke_history.h"
 
+#include "coupler/dem_coupling.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_timestep.hpp"
@@ -32,7 +32,6 @@
 using namespace LAMMPS_NS;
 using namespace FixConst;
 using namespace LAMMPS_NS::hybrid_mpm;
-using MathConst::MY_PI;
 
 namespace {
 
@@ -95,17 +94,8 @@ void FixHybridMPM::check_gravity() const
 {
   double now[3];
   dem_gravity(now);
-  const double *then = opt->continuum.gravity;
-  const double scale = std::max(std::sqrt(then[0] * then[0] + then[1] * then[1] + then[2] * then[2]),
-                                std::sqrt(now[0] * now[0] + now[1] * now[1] + now[2] * now[2]));
-  bool same = true;
-  for (int d = 0; d < 3; d++) same = same && std::fabs(now[d] - then[d]) <= 1e-12 * scale;    // round-off only
-  if (!same)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: gravity changed since the coupled run started: ({}, {}, {}) m/s^2 "
-                                  "then, ({}, {}, {}) now. The MPM process keeps the gravity of the handshake (and "
-                                  "the energy ledger its potential energy): keep the fix gravity commands unchanged "
-                                  "while fix hybrid/mpm is defined",
-                                  then[0], then[1], then[2], now[0], now[1], now[2]));
+  const std::string problem = coupler::gravity_change_problem(opt->continuum.gravity, now);
+  if (!problem.empty()) error->all(FLERR, problem);
 }
 
 /* ----------------------------------------------------------------------
@@ -133,11 +123,8 @@ void FixHybridMPM::check_dem_timestep(const std::string &when)
 {
   std::string why;
   const double steps = dem_steps_per_contact(why);
-  if (steps >= opt->warn_steps_per_contact || steps >= 0.9 * fewest_steps_warned) return;
-  fewest_steps_warned = steps;
-  if (comm->me == 0)
-    error->warning(FLERR, fmt::format("Fix hybrid/mpm: the time step {:.6g} s resolves the contacts poorly {}: {}",
-                                      update->dt, when, why));
+  if (coupler::warn_poor_step(steps, opt->warn_steps_per_contact, fewest_steps_warned) && comm->me == 0)
+    error->warning(FLERR, coupler::poor_step_warning(update->dt, when, why));
 }
 
 /* ----------------------------------------------------------------------
@@ -183,45 +170,10 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
 
 void FixHybridMPM::grain_defaults()
 {
-  // mu(I) needs the grain size and solid density; unless given, take them from the grains
-  double sums[3] = {0, 0, 0}, all[3];
-  const bool two_d = domain->dimension == 2;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    const double r = atom->radius[i];
-    const double volume = two_d ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r;
-    sums[0] += 2.0 * r;
-    sums[1] += atom->rmass[i] / std::max(weight[i], 1e-300);
-    sums[2] += volume;
-  }
-  MPI_Allreduce(sums, all, 3, MPI_DOUBLE, MPI_SUM, world);
-  const bigint n = group->count(igroup);
-  if (n > 0 && !opt->diameter_given) opt->continuum.grain_diameter = all[0] / n;
-  if (all[2] > 0 && !opt->density_given) opt->continuum.grain_density = all[1] / all[2];
-
-  // grains made from points: the size spread, type and groups of the grains there are
-  double range[2] = {-BIG, -BIG}, range_all[2];    // -min diameter, max diameter
-  int common_mask = ~0, all_mask = ~0, smallest_type = atom->ntypes + 1, type_all = 0;
-  for (int i = 0; i < atom->nlocal; i++) {
-    if (!(atom->mask[i] & groupbit)) continue;
-    range[0] = std::max(range[0], -2.0 * atom->radius[i]);
-    range[1] = std::max(range[1], 2.0 * atom->radius[i]);
-    common_mask &= atom->mask[i];
-    smallest_type = std::min(smallest_type, atom->type[i]);
-  }
-  MPI_Allreduce(range, range_all, 2, MPI_DOUBLE, MPI_MAX, world);
-  MPI_Allreduce(&common_mask, &all_mask, 1, MPI_INT, MPI_BAND, world);
-  MPI_Allreduce(&smallest_type, &type_all, 1, MPI_INT, MPI_MIN, world);
-  if (n > 0) {
-    const double dmin = -range_all[0], dmax = range_all[1];
-    // the template's radii are uniform in mean (1 +- p); it needs p < 0.5
-    polydispersity = std::min(0.45, (dmax - dmin) / (dmax + dmin));
-    new_grain_mask = all_mask | 1 | groupbit;
-    if (opt->grain_type == 0) opt->grain_type = type_all;
-  } else {
-    new_grain_mask = 1 | groupbit;
-    if (opt->grain_type == 0) opt->grain_type = 1;
-  }
+  // mu(I) needs the grain size and solid density; grains made from points take the size
+  // spread, type and groups of the grains there are
+  const coupler::GroupGrains gg = coupler::group_grains(grains(), atom->type, atom->ntypes, domain->dimension, world);
+  new_grain_mask = coupler::apply_group_defaults(*opt, gg, groupbit, polydispersity);
 }
 
 /* ----------------------------------------------------------------------
@@ -241,26 +193,11 @@ void FixHybridMPM::apply_material()
   coupler::DeckContact deck;
   deck.dimension = domain->dimension;
   deck.friction = HookeanConstants::friction(pair);
-  deck.kn = hooke.kn;
-  deck.kt = hooke.kt;
-  deck.gamman = hooke.gamman;
+  deck.kn = hooke.kn, deck.kt = hooke.kt, deck.gamman = hooke.gamman;
   deck.gammat = HookeanConstants::tangential_damping(pair);
-  const double r = 0.5 * opt->continuum.grain_diameter;
-  deck.mean_mass = opt->continuum.grain_density * (domain->dimension == 2 ? MY_PI * r * r : 4.0 / 3.0 * MY_PI * r * r * r);
-  const std::string mismatch = coupler::contact_mismatch(m, deck);
-  if (!mismatch.empty())
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: material {} was calibrated for another contact law ({}); "
-                                  "measure the continuum's constants for this one (docs/design.md section 4.6)",
-                                  m.path, mismatch));
-  coupler::apply_material(m, hooke.kn, opt->continuum.grain_diameter, opt->continuum);
-  if (comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: material {} ({}): Young's modulus {:.6g} Pa, Poisson's ratio "
-                                    "{:.3g}, friction angle {:.4g} deg, mu_s {:.4g}, mu_2 {:.4g}, I0 {:.4g}, "
-                                    "critical packing {:.4g}\n",
-                                    m.name, m.path, opt->continuum.youngs_modulus, opt->continuum.poisson_ratio,
-                                    opt->continuum.friction_angle_deg, opt->continuum.mu_s, opt->continuum.mu_2,
-                                    opt->continuum.I0,
-                                    opt->continuum.critical_packing));
+  const std::string problem = coupler::apply_deck_material(*opt, deck);
+  if (!problem.empty()) error->all(FLERR, problem);
+  if (comm->me == 0) utils::logmesg(lmp, coupler::material_line(*opt) + "\n");
 }
 
 double FixHybridMPM::solid_mass(double radius) const
@@ -279,14 +216,8 @@ coupler::GrainRules FixHybridMPM::grain_rules() const
 
 coupler::DemGrains FixHybridMPM::grains() const
 {
-  coupler::DemGrains g;
-  g.n = atom->nlocal;
-  g.x = atom->x, g.v = atom->v, g.omega = atom->omega;
-  g.radius = atom->radius, g.rmass = atom->rmass;
-  g.mask = atom->mask, g.groupbit = groupbit;
-  g.weight = weight;
-  g.stress = atom_stress;
-  return g;
+  return coupler::grain_view(atom->nlocal, atom->x, atom->v, atom->omega, atom->radius, atom->rmass, atom->mask,
+                             groupbit, arrays());
 }
 
 double FixHybridMPM::container_edge(int axis, int side) const

@@ -14,6 +14,7 @@
 #include "domain.h"
 
 #include "coupler/conversion.hpp"
+#include "coupler/dem_grains.hpp"
 #include "coupler/grid_geometry.hpp"
 #include "coupler/transfer.hpp"
 
@@ -22,7 +23,7 @@ namespace hybrid_mpm {
 
 inline constexpr double BIG = 1.0e20;
 // per-atom values that travel with a grain (pack_exchange): weight, support (3), stored stress (6)
-inline constexpr int kPerAtomValues = 1 + 3 + 6;
+inline constexpr int kPerAtomValues = coupler::GrainArrays::kValues;
 
 template <int D>
 using Vec = Eigen::Matrix<double, D, 1>;

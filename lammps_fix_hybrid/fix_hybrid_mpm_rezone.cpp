@@ -17,6 +17,7 @@
 #include "utils.h"
 
 #include "coupler/coupling_timer.hpp"
+#include "coupler/dem_coupling.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
 #include "coupler/dem_rezone.hpp"
@@ -86,35 +87,19 @@ void FixHybridMPM::compute_zones()
   else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, opt->cell));
   // A continuum region that holds no cell centre of the box converts nothing: a region smaller
   // than a cell, or outside the box, is a mistake, not an empty continuum.
-  for (std::size_t k = 0; k < regions.size(); ++k) {
-    double centre[3] = {0, 0, 0};
-    bool any = false;
-    for (std::size_t c = 0; c < zones.size() && !any; ++c) {
-      cell_centre(c, centre);
-      bool in_box = true;
-      for (int d = 0; d < domain->dimension; d++)
-        in_box = in_box && centre[d] >= domain->boxlo[d] && centre[d] <= domain->boxhi[d];
-      any = in_box && regions[k]->match(centre[0], centre[1], domain->dimension == 3 ? centre[2] : 0.0);
-    }
-    if (!any)
-      error->all(FLERR, fmt::format("Fix hybrid/mpm: continuum region '{}' contains no grid cell centre of the box "
-                                    "(cell {}): make the region span at least one cell, or the cell smaller",
-                                    opt->continuum_regions[k], opt->cell));
-  }
+  const auto match = [&](int k, const double *x) { return regions[k]->match(x[0], x[1], x[2]) != 0; };
+  const int empty = domain->dimension == 2
+      ? coupler::first_empty_region<2>(transfer2->grid(), domain->boxlo, domain->boxhi, regions.size(), match)
+      : coupler::first_empty_region<3>(transfer3->grid(), domain->boxlo, domain->boxhi, regions.size(), match);
+  if (empty >= 0)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: continuum region '{}' contains no grid cell centre of the box "
+                                  "(cell {}): make the region span at least one cell, or the cell smaller",
+                                  opt->continuum_regions[empty], opt->cell));
   if (comm->me == 0 && !opt->continuum_regions.empty()) {
-    // cells of the box only (the padding cells around it are continuum by convention)
-    bigint n[3] = {0, 0, 0};
-    double centre[3] = {0, 0, 0};
-    for (std::size_t c = 0; c < zones.size(); ++c) {
-      cell_centre(c, centre);
-      bool in_box = true;    // overlapping it: a face may lie off the cell lattice
-      for (int d = 0; d < domain->dimension; d++)
-        in_box = in_box && centre[d] + 0.5 * opt->cell > domain->boxlo[d] && centre[d] - 0.5 * opt->cell < domain->boxhi[d];
-      if (in_box) n[zones[c]]++;
-    }
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} grid cells in the box: {} continuum, {} hybrid, {} discrete\n",
-                                    n[0] + n[1] + n[2], n[coupler::kContinuum], n[coupler::kHybrid],
-                                    n[coupler::kDiscrete]));
+    bigint n[3];
+    if (domain->dimension == 2) coupler::zone_counts<2>(transfer2->grid(), zones, domain->boxlo, domain->boxhi, n);
+    else coupler::zone_counts<3>(transfer3->grid(), zones, domain->boxlo, domain->boxhi, n);
+    utils::logmesg(lmp, coupler::zone_counts_line(n) + "\n");
   }
 }
 
@@ -253,51 +238,38 @@ const coupler::PackingTemplate<D> &FixHybridMPM::packing_template()
 }
 
 /* ----------------------------------------------------------------------
-   enrichment (coupler::plan_new_grains, the same list on every rank): each
-   rank makes the planned grains in its sub-domain, at their weight times
-   their solid mass, and adds them to their cell's sums (the MPM process
-   then corrects old and new grains together). Returns how many it made.
+   a grain the enrichment planned (coupler::plan_new_grains, the same list
+   on every rank): made by the rank whose sub-domain holds it, at its
+   weight times its solid mass
 ------------------------------------------------------------------------- */
 
 template <int D>
-bigint FixHybridMPM::make_grains(const std::vector<coupler::RezoneCell<D>> &cells,
-                                 std::map<std::size_t, coupler::GrainSums<D>> &sums)
+bool FixHybridMPM::make_grain(const coupler::PlannedGrain<D> &p)
 {
-  double lo[3], hi[3];
-  for (int a = 0; a < 3; a++) lo[a] = container_edge(a, 0), hi[a] = container_edge(a, 1);
-  const auto planned = coupler::plan_new_grains<D>(transfer<D>().grid(), cells, sums, grains(), packing_template<D>(),
-                                                   grain_rules(), opt->continuum.grain_diameter, lo, hi, world);
-  const double zmid = 0.5 * (domain->boxlo[2] + domain->boxhi[2]);
-  bigint made = 0;
-  for (const auto &p : planned) {
-    const auto &g = p.grain;
-    double coord[3] = {0.0, 0.0, zmid};
-    for (int a = 0; a < D; ++a) coord[a] = g.x[a];
-    bool mine = true;
-    for (int a = 0; a < D; ++a) mine = mine && coord[a] >= domain->sublo[a] && coord[a] < domain->subhi[a];
-    if (!mine) continue;
-    atom->avec->create_atom(opt->grain_type, coord);
-    const int n = atom->nlocal - 1;
-    atom->mask[n] = new_grain_mask;
-    atom->radius[n] = g.radius;
-    atom->rmass[n] = p.share * g.mass;
-    for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? g.v[a] : 0.0, atom->omega[n][a] = 0.0;
-    modify->create_attribute(n);    // every fix's per-atom data (pair history, ours)
-    weight[n] = p.share;
-    coupler::add_new_grain<D>(sums, cells, p, grain_rules());
-    made++;
-  }
-  return made;
+  const auto &g = p.grain;
+  double coord[3] = {0.0, 0.0, 0.5 * (domain->boxlo[2] + domain->boxhi[2])};
+  for (int a = 0; a < D; ++a) coord[a] = g.x[a];
+  for (int a = 0; a < D; ++a)
+    if (coord[a] < domain->sublo[a] || coord[a] >= domain->subhi[a]) return false;
+  atom->avec->create_atom(opt->grain_type, coord);
+  const int n = atom->nlocal - 1;
+  atom->mask[n] = new_grain_mask;
+  atom->radius[n] = g.radius;
+  atom->rmass[n] = p.share * g.mass;
+  for (int a = 0; a < 3; a++) atom->v[n][a] = a < D ? g.v[a] : 0.0, atom->omega[n][a] = 0.0;
+  modify->create_attribute(n);    // every fix's per-atom data (pair history, ours)
+  weight[n] = p.share;
+  return true;
 }
 
 /* ----------------------------------------------------------------------
-   a rezone (coupler/protocol.hpp): the zones change (oracle, or the map of
-   the continuum regions at the start), and the material of every cell whose
-   zone changed moves between grains and points with exact mass, momentum
-   and angular momentum: grains are deleted (homogenisation), made from the
-   points (enrichment) or take a new share of the cell's material; the MPM
-   process does the same for the points. Love-Weber stress of the grains
-   goes into the new points.
+   a rezone (coupler::rezone_grains): the zones change (oracle, or the map
+   of the continuum regions at the start), and the material of every cell
+   whose zone changed moves between grains and points with exact mass,
+   momentum and angular momentum: grains are deleted (homogenisation), made
+   from the points (enrichment) or take a new share of the cell's material;
+   the MPM process does the same for the points. Love-Weber stress of the
+   grains goes into the new points.
 ------------------------------------------------------------------------- */
 
 template <int D>
@@ -305,121 +277,61 @@ void FixHybridMPM::rezone(int source)
 {
   const double start = MPI_Wtime();
   check_finite_grains("before the rezone");
-  const auto &grid = transfer<D>().grid();
   // as fix pour: atoms are created and deleted now, the ghosts are rebuilt after
   if (atom->map_style != Atom::MAP_NONE) atom->map_clear();
   atom->nghost = 0;
   atom->avec->clear_bonus();
 
-  coupler::StepAck ack;
-
   double grains_before[7], grains_after[7];
   grain_totals(grains_before);
   close_dem_bracket();
 
-  // 1. zones: the grains' volume per cell goes to the MPM process, which runs the oracle
-  const std::vector<coupler::CellGrains> volumes = coupler::cell_grains<D>(grid, grains());
-  std::vector<signed char> new_zones;
-  std::vector<coupler::RezoneCell<D>> cells;
-  coupler::StepHeader header = step_header(coupler::kStepRezone);
-  header.zone_source = source;
-  const double asked = MPI_Wtime();
-  check(session->rezone_zones<D>(header, zones, opt->oracle, [&] { return discrete_cells(); }, volumes, zones.size(),
-                                 new_zones, cells, ack));
-  const double oracle_wait = MPI_Wtime() - asked;
-  zones = std::move(new_zones);
-
-  // 2. the sums of the grains in the moving cells, before anything changes
-  const coupler::CellSlots slots = coupler::cell_slots<D>(cells);
-  std::map<std::size_t, coupler::GrainSums<D>> sums =
-      coupler::moving_grain_sums<D>(grid, cells, slots, grains(), grain_rules());
-
-  // 3. enrichment (collective over the DEM ranks): new grains, their sums with the old ones'
-  const bigint made_local = make_grains<D>(cells, sums);
-
-  // 4. the MPM process answers what the grains of each cell become
-  std::vector<coupler::GrainCorrection<D>> corrections;
-  std::vector<coupler::GrainSums<D>> sum_list;
-  for (const auto &kv : sums) sum_list.push_back(kv.second);
-  check(session->rezone_corrections<D>(sum_list, corrections, ack));
-
-  // 5. apply them: delete, or scale and add the rigid velocity increment
-  coupler::DemGrains now = grains();    // (new grains may have moved the arrays)
-  std::int64_t hybrid_local = 0;
-  const std::vector<char> remove =
-      coupler::apply_corrections<D>(grid, cells, slots, corrections, now, grain_rules(), hybrid_local);
-  bigint deleted_local = 0;
-  AtomVec *avec = atom->avec;
-  for (int i = static_cast<int>(remove.size()) - 1; i >= 0; i--)    // as fix evaporate: the last atom fills the gap
-    if (remove[i]) {
-      avec->copy(atom->nlocal - 1, i, 1);
-      atom->nlocal--;
-      deleted_local++;
-    }
-
-  // 6. the grains' support force now (deleted, made, rescaled grains changed it): the MPM
-  // process balances the points' reaction with it; then the acknowledgement with its totals
-  double force_local[3] = {0.0, 0.0, 0.0}, force[3];
-  for (int i = 0; i < atom->nlocal; i++)
-    for (int a = 0; a < 3; a++) force_local[a] += atom->rmass[i] * support[i][a];
-  MPI_Allreduce(force_local, force, 3, MPI_DOUBLE, MPI_SUM, world);
-  check(session->rezone_finish(force, ack));
+  coupler::RezonePlan<D> plan;
+  plan.grid = &transfer<D>().grid();
+  plan.header = step_header(coupler::kStepRezone);
+  plan.header.zone_source = source;
+  plan.oracle = &opt->oracle;
+  plan.packing = &packing_template<D>();
+  plan.rules = grain_rules();
+  plan.grain_diameter = opt->continuum.grain_diameter;
+  for (int a = 0; a < 3; a++) plan.lo[a] = container_edge(a, 0), plan.hi[a] = container_edge(a, 1);
+  coupler::RezoneAtoms<D> atoms;
+  atoms.grains = [&] { return grains(); };
+  atoms.make = [&](const coupler::PlannedGrain<D> &p) { return make_grain<D>(p); };
+  atoms.remove = [&](const std::vector<char> &flags) {
+    atom->nlocal = coupler::delete_flagged(flags, atom->nlocal, [&](int from, int to) { atom->avec->copy(from, to, 1); });
+  };
+  atoms.discrete_cells = [&] { return discrete_cells(); };
+  coupler::StepAck ack;
+  coupler::RezoneCounts counts;
+  const coupler::StepOutcome outcome = coupler::rezone_grains<D>(*session, world, plan, zones, atoms, support, ack, counts);
+  if (!outcome.ok()) error->all(FLERR, "Fix hybrid/mpm: " + outcome.what);
   *last_ack = ack;
 
   grain_totals(grains_after);
-  const double energy_after = grain_energy();
-  ledger->close_rezone(energy_after);
-  // how far the carried masses drifted from the grains' share of their solid mass
-  double drift[2], drift_all[2];    // -lightest, heaviest
-  coupler::mass_drift(grains(), grain_rules(), drift);
-  MPI_Allreduce(drift, drift_all, 2, MPI_DOUBLE, MPI_MAX, world);
-  bigint local[3] = {deleted_local, made_local, static_cast<bigint>(hybrid_local)}, all[3];
-  MPI_Allreduce(local, all, 3, MPI_LMP_BIGINT, MPI_SUM, world);
-  // as fix deposit and fix pour do: made grains must not overflow the atom count or the IDs
-  if (all[1] > all[0] && all[1] - all[0] > MAXBIGINT - atom->natoms)
-    error->all(FLERR, fmt::format("Fix hybrid/mpm: too many total atoms: making {} grains from points at step {} "
-                                  "would exceed the largest atom count LAMMPS allows ({})",
-                                  all[1], update->ntimestep, MAXBIGINT));
-  if (all[1] > 0) {
-    tagint maxtag = 0, maxtag_all = 0;
-    for (int i = 0; i < atom->nlocal; i++) maxtag = std::max(maxtag, atom->tag[i]);    // new grains: tag 0
-    MPI_Allreduce(&maxtag, &maxtag_all, 1, MPI_LMP_TAGINT, MPI_MAX, world);
-    if (all[1] >= static_cast<bigint>(MAXTAGINT) - maxtag_all)
-      error->all(FLERR, fmt::format("Fix hybrid/mpm: new atom IDs exceed the largest ID allowed ({}): making {} "
-                                    "grains from points at step {} after ID {}; compact the IDs (reset_atom_ids) or "
-                                    "build LAMMPS with -DLAMMPS_BIGBIG",
-                                    MAXTAGINT, all[1], update->ntimestep, maxtag_all));
-  }
-  atom->natoms += all[1] - all[0];
-  if (all[1] > 0) atom->tag_extend();
+  ledger->close_rezone(grain_energy());
+  // how far the carried masses drifted from the grains' share of their solid mass; the IDs in use
+  const coupler::RezoneAftermath aftermath = coupler::rezone_aftermath(
+      grains(), grain_rules(), atom->nlocal > 0 ? *std::max_element(atom->tag, atom->tag + atom->nlocal) : 0, world);
+  const std::string too_many = coupler::new_atoms_problem(
+      counts.made, counts.deleted, atom->natoms, MAXBIGINT, aftermath.max_tag, MAXTAGINT, update->ntimestep, "LAMMPS",
+      "compact the IDs (reset_atom_ids) or build LAMMPS with -DLAMMPS_BIGBIG");
+  if (!too_many.empty()) error->all(FLERR, "Fix hybrid/mpm: " + too_many);
+  atom->natoms += counts.made - counts.deleted;
+  if (counts.made > 0) atom->tag_extend();
   if (atom->map_style != Atom::MAP_NONE) {
     atom->map_init();
     atom->map_set();
   }
-  coupler::RezoneReport report;
-  report.step = update->ntimestep;
-  report.grains_deleted = all[0];
-  report.points_made = ack.points_made;
-  report.hybrid_grains = all[2];
-  report.weight = opt->continuum.grain_weight;
-  report.grains_made = all[1];
-  report.moved_cells = ack.moved_cells;
-  report.continuum_cells = ack.zone_cells[coupler::kContinuum];
-  report.hybrid_cells = ack.zone_cells[coupler::kHybrid];
-  report.discrete_cells = ack.zone_cells[coupler::kDiscrete];
-  report.rests_moved = ack.rests_moved;
-  report.rests_kept = ack.rests_kept;
-  report.lightest = -drift_all[0];
-  report.heaviest = drift_all[1];
+  const coupler::RezoneReport report =
+      coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath.drift);
   // what the rezone did to the totals of grains plus points (exact up to round-off)
-  const double points_after[7] = {ack.mass, ack.momentum[0], ack.momentum[1], ack.momentum[2],
-                                  ack.angular[0], ack.angular[1], ack.angular[2]};
   double before[7], after[7];
-  for (int k = 0; k < 7; k++) before[k] = grains_before[k] + ack.before[k], after[k] = grains_after[k] + points_after[k];
+  coupler::rezone_totals(grains_before, grains_after, ack, before, after);
   log_rezone(report, source, before, after);
   check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
-  charge(coupler::kTimeOracle, oracle_wait);
-  charge(coupler::kTimeRezone, MPI_Wtime() - start - oracle_wait);
+  charge(coupler::kTimeOracle, counts.oracle_wait);
+  charge(coupler::kTimeRezone, MPI_Wtime() - start - counts.oracle_wait);
   run_timing->rezones++;
   all_timing->rezones++;
 }

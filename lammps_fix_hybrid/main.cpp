@@ -18,7 +18,7 @@
 #include "lammps.h"
 #include "modify.h"
 
-#include "coupler/protocol.hpp"
+#include "coupler/dem_coupling.hpp"
 
 #include <mpi.h>
 
@@ -48,19 +48,7 @@ void check_abi(LAMMPS *lmp)
 
 int main(int argc, char **argv)
 {
-  MPI_Init(&argc, &argv);
-
-  int me = 0;
-  MPI_Comm_rank(MPI_COMM_WORLD, &me);
-  MPI_Comm lammps_comm = MPI_COMM_NULL;
-  MPI_Comm_split(MPI_COMM_WORLD, coupler::kDemColor, me, &lammps_comm);
-  try {
-    coupler::install_dem_finalize_hook(lammps_comm);
-  } catch (const std::exception &e) {
-    std::fprintf(stderr, "lmp_hybrid: ERROR: %s\n", e.what());
-    MPI_Abort(MPI_COMM_WORLD, 1);
-  }
-  coupler::set_world_barrier_by_hook(true);    // errors: Debian's Error::all -> MPI_Finalize
+  MPI_Comm lammps_comm = coupler::start_dem_job(&argc, &argv, "lmp_hybrid");
 
   try {
     auto *lammps = new LAMMPS(argc, argv, lammps_comm);
@@ -73,11 +61,8 @@ int main(int argc, char **argv)
     MPI_Abort(MPI_COMM_WORLD, 1);
     std::exit(1);
   }
-  // Normal end. If no fix hybrid/mpm ever connected, dem_end_of_job tells the MPM process.
-  coupler::set_unconnected_exit_reason(
-      "the LAMMPS input ended without a run that uses fix hybrid/mpm - nothing was coupled");
-  coupler::dem_end_of_job();    // AbortNote if nothing was coupled, MPI_Barrier(MPI_COMM_WORLD)
-  MPI_Comm_free(&lammps_comm);
-  MPI_Finalize();
+  // Normal end. If no fix hybrid/mpm ever connected, the MPM process is told.
+  coupler::end_dem_job(lammps_comm,
+                       "the LAMMPS input ended without a run that uses fix hybrid/mpm - nothing was coupled");
   return 0;
 }

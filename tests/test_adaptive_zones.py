@@ -64,14 +64,16 @@ def rezones(log: str) -> tuple[list[dict], list[np.ndarray]]:
 
 
 @pytest.mark.parametrize("np_", [1, 2])
-@pytest.mark.parametrize("dim", ["2d", "3d"])
-def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid_programs, dim, np_):
+@pytest.mark.parametrize("dim,host", [("2d", "lammps"), ("3d", "lammps"), ("3d", "liggghts")])
+def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid_programs, dim, host, np_):
     """A patch of grains with random velocities and no external force: the oracle makes its
     interior continuum at step 1, then (shear-rate criterion on) turns fast-shearing continuum
     back into grains and later into points again. Before and after each rezone the totals agree
-    to round-off, in 2D and 3D, on 1 and 2 LAMMPS ranks; both directions of handoff happen."""
+    to round-off, in 2D and 3D, on 1 and 2 DEM ranks, with LAMMPS and (3D) LIGGGHTS as the DEM
+    host (its twin deck adaptive_3d.liggghts); both directions of handoff happen."""
     nsteps = 200 if dim == "2d" else 100
-    log = run_deck(tmp_path, DECKS[dim], np_, "-var", "nsteps", str(nsteps))
+    deck = DECKS[dim] if host == "lammps" else DECKS[dim].with_suffix(".liggghts")
+    log = run_deck(tmp_path, deck, np_, "-var", "nsteps", str(nsteps), host=host)
     counts, totals = rezones(log)
     assert [c["step"] for c in counts] == [1] + list(range(21, nsteps, 20))
     assert len(totals) == len(counts)

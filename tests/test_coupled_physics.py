@@ -30,33 +30,57 @@ def env() -> dict:
     return e
 
 
-def run_deck(tmp_path: Path, deck: Path, np_: int, *lammps_args: str, timeout: float = 300) -> str:
-    """Runs a coupled deck; returns the LAMMPS log text (fails on a non-zero exit)."""
+def run_deck(tmp_path: Path, deck: Path, np_: int, *lammps_args: str, timeout: float = 300,
+             host: str = "lammps") -> str:
+    """Runs a coupled deck on the DEM host `host` (lammps: lmp_hybrid, liggghts: liggghts_hybrid);
+    returns the log text (fails on a non-zero exit)."""
     log = tmp_path / "log.lammps"
-    proc = subprocess.run([sys.executable, str(LAUNCH), "-np", str(np_), str(deck), "-log", str(log),
-                           *lammps_args], capture_output=True, text=True, timeout=timeout, env=env(),
-                          cwd=tmp_path)
+    proc = subprocess.run([sys.executable, str(LAUNCH), "--host", host, "-np", str(np_), str(deck), "-log", str(log),
+                           *lammps_args], capture_output=True, text=True, errors="replace", timeout=timeout,
+                          env=env(), cwd=tmp_path)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    return log.read_text()
+    text = log.read_text()
+    return liggghts_headers(text, deck.read_text()) if host == "liggghts" else text
+
+
+def liggghts_headers(log: str, deck: str) -> str:
+    """The log with its thermo headers spelled as the deck's thermo_style names them: LIGGGHTS
+    prints a header's names cut to 8 characters (f_couple[10] as "couple[1")."""
+    styles = re.findall(r"^thermo_style\s+custom\s+(.*)$", deck, flags=re.M)
+    names = ["Step" if w == "step" else "Atoms" if w == "atoms" else w for w in styles[-1].split()]
+    return "\n".join(" ".join(names) if line.split()[:1] == ["Step"] else line for line in log.splitlines())
 
 
 DECKS = {  # deck, points made from grains, hybrid grains, momentum components
     "2d": (MOMENTUM_DECK, 64, 300, 2),
     "3d": (REPO / "input_decks" / "hybrid" / "momentum_3d.lmp", 512, 876, 3),
+    # the LIGGGHTS twin of the 3D deck (liggghts_hybrid; LIGGGHTS runs are 3D only)
+    "3d-liggghts": (REPO / "input_decks" / "hybrid" / "momentum_3d.liggghts", 512, 876, 3),
 }
+# the scenes on both DEM hosts: (dim, host)
+SCENES = [("2d", "lammps"), ("3d", "lammps"), ("3d", "liggghts")]
+
+
+def scene(dim: str, host: str, programs: dict) -> tuple:
+    """The deck and figures of a scene on a host (LIGGGHTS: its twin deck; liggghts_hybrid must be built)."""
+    if host == "liggghts":
+        exe = programs.get("liggghts_hybrid", "")
+        assert exe and Path(exe).exists(), "liggghts_hybrid is not built (libliggghts-dev; run tools/setup.sh)"
+        return DECKS[f"{dim}-liggghts"]
+    return DECKS[dim]
 
 
 @pytest.mark.parametrize("pic", [1, 0])
 @pytest.mark.parametrize("np_", [1, 2])
-@pytest.mark.parametrize("dim", ["2d", "3d"])
-def test_linear_momentum_of_grains_plus_points_is_conserved(tmp_path, hybrid_programs, dim, np_, pic):
+@pytest.mark.parametrize("dim,host", SCENES)
+def test_linear_momentum_of_grains_plus_points_is_conserved(tmp_path, hybrid_programs, dim, host, np_, pic):
     """No gravity, no walls in reach: grains collide, the continuum core is coupled through a
     ring (shell) of hybrid cells every step. Grains' carried momentum plus the points' momentum
     stays what the grains alone had at step 0 (before the conversion), in 2D and 3D, on 1 and
-    2 LAMMPS ranks, with either grain update."""
-    deck, n_points, n_hybrid, n_comp = DECKS[dim]
+    2 DEM ranks, with either grain update, with LAMMPS and (3D) LIGGGHTS as the DEM host."""
+    deck, n_points, n_hybrid, n_comp = scene(dim, host, hybrid_programs)
     nsteps = 200 if dim == "2d" else 100
-    log = run_deck(tmp_path, deck, np_, "-var", "nsteps", str(nsteps), "-var", "pic", str(pic))
+    log = run_deck(tmp_path, deck, np_, "-var", "nsteps", str(nsteps), "-var", "pic", str(pic), host=host)
     m = re.search(r"grains became (\d+) material points, (\d+) grains are hybrid", log)
     assert m, log
     # the random velocities depend on the rank count, so grains near cell faces may differ
@@ -270,14 +294,19 @@ def test_restart_continues_the_coupled_run(tmp_path, hybrid_programs):
     assert coupled_dv <= 2 * lammps_dv + 1e-12
 
 
-@pytest.mark.parametrize("dim", ["2d", "3d"])
-def test_conversion_keeps_mass_momentum_and_angular_momentum_exactly(tmp_path, hybrid_programs, dim):
+@pytest.mark.parametrize("dim,host", SCENES)
+def test_conversion_keeps_mass_momentum_and_angular_momentum_exactly(tmp_path, hybrid_programs, dim, host):
     """Grains that do not touch (a lattice looser than their diameter), spinning and moving at
-    random, no gravity: LAMMPS conserves their totals exactly, so the totals just after the
+    random, no gravity: the DEM host conserves their totals exactly, so the totals just after the
     conversion at step 1 (grains' carried mass plus the new points, before any exchange) equal
     those at step 0 to round-off: mass, linear momentum and angular momentum (orbital plus spin
-    of the grains; APIC for the points)."""
-    deck_in, *_ = DECKS[dim]
+    of the grains; APIC for the points). LAMMPS and (3D) LIGGGHTS as the DEM host."""
+    deck_in, *_ = scene(dim, host, hybrid_programs)
+    if host == "liggghts":
+        log = run_deck(tmp_path, LIGGGHTS_CONVERSION_DECK, 2, "-var", "data",
+                       str(spinning_lattice_data(tmp_path / "grains.data")), host=host)
+        check_conversion_totals(log)
+        return
     text = deck_in.read_text()
     text = text.replace("lattice         sq 0.002 ", "lattice         sq 0.0025 ")
     text = text.replace("lattice         sc 0.004 ", "lattice         sc 0.005 ")
@@ -291,7 +320,33 @@ def test_conversion_keeps_mass_momentum_and_angular_momentum_exactly(tmp_path, h
     text = text.replace("thermo          10", "thermo          1")
     deck = tmp_path / "deck.lmp"
     deck.write_text(text)
-    log = run_deck(tmp_path, deck, 2, "-var", "nsteps", "2", "-var", "every", "10")
+    check_conversion_totals(run_deck(tmp_path, deck, 2, "-var", "nsteps", "2", "-var", "every", "10"))
+
+
+LIGGGHTS_CONVERSION_DECK = REPO / "input_decks" / "hybrid" / "conversion_3d.liggghts"
+
+
+def spinning_lattice_data(path: Path, seed: int = 7731) -> Path:
+    """The grains of the 3D conversion scene (momentum_3d's patch on the looser lattice sc 0.005,
+    diameter 0.004, density 2500, velocities within +-0.05 m/s, spins wx, wz within +-20 rad/s) as
+    a LIGGGHTS data file (LIGGGHTS 3.8's set command cannot set spins)."""
+    rng = np.random.default_rng(seed)
+    axis = (np.arange(4, 16) + 0.5) * 0.005    # the lattice points inside [0.02, 0.08]
+    x = np.array(np.meshgrid(axis, axis, axis, indexing="ij")).reshape(3, -1).T
+    v = rng.uniform(-0.05, 0.05, x.shape)
+    w = np.zeros_like(x)
+    w[:, [0, 2]] = rng.uniform(-20, 20, (len(x), 2))
+    lines = ["grains of conversion_3d.liggghts (tests/test_coupled_physics.py)", "", f"{len(x)} atoms", "1 atom types",
+             "0 0.1 xlo xhi", "0 0.1 ylo yhi", "0 0.1 zlo zhi", "", "Atoms", ""]
+    lines += [f"{i + 1} 1 0.004 2500 " + " ".join(repr(float(c)) for c in p) for i, p in enumerate(x)]
+    lines += ["", "Velocities", ""]
+    lines += [f"{i + 1} " + " ".join(repr(float(c)) for c in (*v[i], *w[i])) for i in range(len(x))]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def check_conversion_totals(log: str):
+    """Step 0 (grains only) against step 1 (grains' carried mass plus the new points)."""
     rows = thermo_tables(log)[-1]
     before, after = rows[0], rows[1]
     assert before["f_couple[3]"] == 0 and after["f_couple[3]"] > 0 and after["Step"] == 1

@@ -54,6 +54,16 @@ def test_command_lines_of_the_three_codes(tmp_path):
     assert forms.deck("liggghts").name == "liggghts_3d.in" and forms.deck("hybrid").name == "dem_3d.lmp"
     assert forms.variables("hybrid", {"d": 1}, {"hybrid": 2}) == {"d": 1, "hybrid": 2, "hdeck": forms.hybrid_deck()}
     assert forms.variables("lammps", {"d": 1}, {"hcell": 2}) == {"d": 1}
+    # the LIGGGHTS-hosted hybrid: the LIGGGHTS deck with its own include, through hybrid_launch.py --host liggghts
+    hybrid_liggghts = command("hybrid_liggghts", deck, {}, log, np_=2)
+    assert hybrid_liggghts[1:6] == [str(TOOLS / "hybrid_launch.py"), "--host", "liggghts", "-np", "2"]
+    silo = Forms("silo", hybrid_liggghts="hybrid_3d.liggghts")
+    assert silo.deck("hybrid_liggghts").name == "liggghts_3d.in"
+    assert silo.variables("hybrid_liggghts", {"d": 1}) == {"d": 1, "hybrid": 1,
+                                                            "hdeck": silo.hybrid_deck("hybrid_liggghts")}
+    assert silo.hybrid_deck("hybrid_liggghts").is_file()
+    with pytest.raises(ValueError, match="has no hybrid_liggghts twin"):
+        forms.variables("hybrid_liggghts", {})
 
 
 def test_a_failed_run_names_the_code_the_stage_and_the_log_tail(tmp_path, lmp):

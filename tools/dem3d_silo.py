@@ -6,6 +6,8 @@
     --code liggghts  input_decks/silo/liggghts_3d.in with LIGGGHTS 3.8 (`liggghts`)
     --code hybrid    dem_3d.lmp + input_decks/silo/hybrid_3d.lmp (fix hybrid/mpm, adaptive
                      zones) through tools/hybrid_launch.py (lmp_hybrid + mpm_solver)
+    --code hybrid_liggghts  liggghts_3d.in + input_decks/silo/hybrid_3d.liggghts (the same coupling
+                     with LIGGGHTS as the DEM host: hybrid_launch.py --host liggghts)
 
 Prepares the settled silo with `--prep-code` (default LAMMPS; cached in $HYBRID_CACHE/dem3d_silo/),
 discharges it with `--code`, and measures the steady rate of the discharged mass against the 3D
@@ -34,7 +36,7 @@ from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, covered_fraction, gr
 from hgtools.laws import BEVERLOO_C3D, BEVERLOO_K, G, beverloo_3d
 from hgtools.runner import CODES, Forms, workdir
 
-FORMS = Forms("silo")
+FORMS = Forms("silo", hybrid_liggghts="hybrid_3d.liggghts")
 DEFAULTS = dict(width=0.03, height=0.04, orifice=0.012, d=0.002, rho=2500.0, tout=0.01)
 
 
@@ -157,7 +159,7 @@ def run(code: str = "lammps", width: float = DEFAULTS["width"], height: float = 
     mo = re.search(r"^DEM3D open: step \S+, grains (\d+), mass (\S+) kg", text, re.M)
     n0, mass0 = int(mo.group(1)), float(mo.group(2))
     figures, (n_in, n_fall, n_del, n_all) = measure(out / "discharge.dat", mass0)
-    if code != "hybrid":
+    if code not in ("hybrid", "hybrid_liggghts"):
         lost = int(max(np.max(n0 - n_all - n_del), np.max(np.abs(n_all - n_in - n_fall)),
                        round(logs.number(r"^DEM3D end:.* lost (\S+)", text))))
     else:  # grains become points and back: the counts do not balance (the fix's totals do)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Run a coupled LAMMPS + MPM job (one MPMD mpirun).
+"""Run a coupled LAMMPS (or LIGGGHTS) + MPM job (one MPMD mpirun).
 
     tools/hybrid_launch.py -np 2 deck.lmp [LAMMPS args...]
         -> tools/mpirun.sh -np 2 build/lammps_fix_hybrid/lmp_hybrid -in deck.lmp [LAMMPS args...]
@@ -13,7 +13,13 @@
            (-m is -mpicolor: it must come first; mpm_solver uses colour 1. This LAMMPS
            version accepts only the short form: its argument loop rejects "-mpicolor".)
 
-Arguments after the deck go to LAMMPS unchanged (e.g. -var nsteps 1000 -log run.log).
+    tools/hybrid_launch.py --host liggghts -np 2 deck.liggghts
+        -> tools/mpirun.sh -np 2 build/lammps_fix_hybrid/liggghts_hybrid -in deck.liggghts
+                         : -np 1 build/mpm_solver/mpm_solver --coupled
+           (LIGGGHTS 3.8 as the DEM host: 3D decks, fixed continuum regions; see
+           docs/fix_hybrid_mpm.md, "LIGGGHTS host")
+
+Arguments after the deck go to LAMMPS (LIGGGHTS) unchanged (e.g. -var nsteps 1000 -log run.log).
 tools/mpirun.sh handles running as root and adds --oversubscribe when the ranks exceed the
 cores. The exit status is mpirun's; when it is not 0 a last line says which MPI rank is which
 program, since Open MPI names failing processes by rank only.
@@ -47,7 +53,14 @@ def compose(args: argparse.Namespace, programs: dict, wrapper_dir: Path | None) 
     if not deck.is_file():
         sys.exit(f"hybrid_launch: deck {deck} not found")
     mpm = programs["mpm_solver"]
-    for exe in [mpm] + ([] if args.plugin else [programs["lmp_hybrid"]]):
+    if args.host == "liggghts":
+        if args.plugin:
+            sys.exit("hybrid_launch: --plugin is for LAMMPS only (LIGGGHTS has no plugin loader)")
+        if not programs.get("liggghts_hybrid"):
+            sys.exit("hybrid_launch: liggghts_hybrid is not built: the LIGGGHTS headers were not found at "
+                     "configure time (Debian package libliggghts-dev; tools/setup.sh installs it)")
+    host = programs["liggghts_hybrid"] if args.host == "liggghts" else programs["lmp_hybrid"]
+    for exe in [mpm] + ([] if args.plugin else [host]):
         if not Path(exe).exists():
             sys.exit(f"hybrid_launch: {exe} is not built - run tools/setup.sh")
     if args.plugin:
@@ -62,12 +75,17 @@ def compose(args: argparse.Namespace, programs: dict, wrapper_dir: Path | None) 
                            f"include {deck.resolve()}\n")
         lammps = [lmp, "-m", "0", "-in", str(wrapper)]
     else:
-        lammps = [programs["lmp_hybrid"], "-in", str(deck)]
+        lammps = [host, "-in", str(deck)]
     mpm_cmd = [mpm, "--coupled"]
     if args.mpm_timeout is not None:
         mpm_cmd += ["--timeout", str(args.mpm_timeout)]
     return ([str(REPO / "tools" / "mpirun.sh"), *args.mpirun_arg, "-np", str(args.np), *lammps, *args.lammps_args,
              ":", "-np", "1", *mpm_cmd])
+
+
+def dem_program(args: argparse.Namespace) -> str:
+    """The DEM side's program name, for messages."""
+    return "liggghts_hybrid" if args.host == "liggghts" else "lmp_plugin" if args.plugin else "lmp_hybrid"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -76,6 +94,8 @@ def main(argv: list[str] | None = None) -> int:
         epilog="Arguments after the deck go to LAMMPS. Example: tools/hybrid_launch.py -np 2 "
                "input_decks/hybrid/handshake.lmp -var nsteps 1000")
     ap.add_argument("-np", "--np", type=int, default=1, help="LAMMPS ranks (default 1); mpm_solver gets 1")
+    ap.add_argument("--host", choices=["lammps", "liggghts"], default="lammps",
+                    help="the DEM host: lammps (lmp_hybrid, default) or liggghts (liggghts_hybrid, LIGGGHTS 3.8)")
     ap.add_argument("--plugin", action="store_true",
                     help="use the PLUGIN-enabled LAMMPS (lmp_plugin -m 0, i.e. -mpicolor 0) and plugin load "
                          "hybridmpmplugin.so instead of lmp_hybrid")
@@ -110,8 +130,9 @@ def main(argv: list[str] | None = None) -> int:
     if rc != 0:
         last = args.np - 1
         lammps = "rank 0" if last == 0 else f"ranks 0-{last}"
-        print(f"hybrid_launch: the coupled job failed (exit status {rc}); MPI_COMM_WORLD {lammps} are LAMMPS "
-              f"({'lmp_plugin' if args.plugin else 'lmp_hybrid'}), rank {args.np} is mpm_solver",
+        host = "LIGGGHTS" if args.host == "liggghts" else "LAMMPS"
+        print(f"hybrid_launch: the coupled job failed (exit status {rc}); MPI_COMM_WORLD {lammps} are {host} "
+              f"({dem_program(args)}), rank {args.np} is mpm_solver",
               file=sys.stderr, flush=True)
     return rc if rc >= 0 else 128 - rc
 

@@ -71,7 +71,7 @@ SRC_SOURCES=/etc/apt/sources.list.d/hybrid-granular-src.sources
 JOBS="${HYBRID_BUILD_JOBS:-$(nproc)}"
 
 PACKAGES=(build-essential cmake ninja-build pkg-config git python3-venv python3-dev
-          dpkg-dev lammps liblammps-dev liggghts openmpi-bin libopenmpi-dev
+          dpkg-dev lammps liblammps-dev liggghts libliggghts-dev openmpi-bin libopenmpi-dev
           libeigen3-dev libhdf5-openmpi-dev libtomlplusplus-dev libcli11-dev
           googletest libgtest-dev)
 

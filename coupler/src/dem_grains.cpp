@@ -75,4 +75,56 @@ void mass_drift(const DemGrains &g, const GrainRules &rules, double out[2]) {
 template std::vector<CellGrains> cell_grains<2>(const GridGeometry<2> &, const DemGrains &);
 template std::vector<CellGrains> cell_grains<3>(const GridGeometry<3> &, const DemGrains &);
 
+
+void GrainArrays::copy(int from, int to) const {
+  weight[to] = weight[from];
+  for (int a = 0; a < 3; a++) support[to][a] = support[from][a];
+  for (int k = 0; k < 6; k++) stress[to][k] = stress[from][k];
+}
+
+void GrainArrays::reset(int i) const {
+  weight[i] = 1.0;
+  for (int a = 0; a < 3; a++) support[i][a] = 0.0;
+  for (int k = 0; k < 6; k++) stress[i][k] = 0.0;    // made after the stress was stored: none
+}
+
+int GrainArrays::pack(int i, double *buf) const {
+  buf[0] = weight[i];
+  for (int a = 0; a < 3; a++) buf[1 + a] = support[i][a];
+  for (int k = 0; k < 6; k++) buf[4 + k] = stress[i][k];
+  return kValues;
+}
+
+int GrainArrays::unpack(int i, const double *buf) const {
+  weight[i] = buf[0];
+  for (int a = 0; a < 3; a++) support[i][a] = buf[1 + a];
+  for (int k = 0; k < 6; k++) stress[i][k] = buf[4 + k];
+  return kValues;
+}
+
+int GrainArrays::pack_restart(int i, double *buf) const {
+  buf[0] = kRestartValues;
+  buf[1] = weight[i];
+  for (int a = 0; a < 3; a++) buf[2 + a] = support[i][a];
+  return kRestartValues;
+}
+
+void GrainArrays::unpack_restart(int i, const double *values) const {
+  weight[i] = values[1];
+  for (int a = 0; a < 3; a++) support[i][a] = values[2 + a];
+}
+
+std::vector<int> supported_grains(double *const *support, int n) {
+  std::vector<int> index;
+  for (int i = 0; i < n; i++)
+    if (support[i][0] != 0.0 || support[i][1] != 0.0 || support[i][2] != 0.0) index.push_back(i);
+  return index;
+}
+
+int delete_flagged(const std::vector<char> &flags, int n, const std::function<void(int, int)> &move) {
+  for (int i = static_cast<int>(flags.size()) - 1; i >= 0; i--)
+    if (flags[i]) move(--n, i);
+  return n;
+}
+
 }    // namespace coupler

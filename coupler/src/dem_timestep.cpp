@@ -31,6 +31,44 @@ std::string DemStepCheck::why(double warn_below) const {
          ") or less";
 }
 
+double rayleigh_time(double radius, double mass, double youngs, double poisson) {
+  const double density = mass / (4.0 / 3.0 * M_PI * radius * radius * radius);
+  const double shear_modulus = youngs / (2.0 * (1.0 + poisson));
+  return M_PI * radius * std::sqrt(density / shear_modulus) / (0.1631 * poisson + 0.8766);
+}
+
+double hertz_time(double radius, double mass, double youngs, double poisson, double speed) {
+  if (!(speed > 0)) return std::numeric_limits<double>::infinity();
+  const double y_eff = youngs / (2.0 * (1.0 - poisson * poisson));
+  return 2.87 * std::pow(mass * mass / (0.5 * radius * y_eff * y_eff * speed), 0.2);
+}
+
+DemStepCheck check_elastic_step(const std::string &model, double radius, double mass, double youngs, double poisson,
+                                double speed, bool split, double dt) {
+  const double rayleigh = rayleigh_time(radius, mass, youngs, poisson), hertz = hertz_time(radius, mass, youngs, poisson, speed);
+  DemStepCheck c;
+  c.tc = std::min(hertz, kRayleighContactFactor * rayleigh);
+  c.steps = c.tc / dt;
+  c.what = "the lightest grains (pair style gran model " + model + ", " + general(mass, 4) + " kg" +
+           (split ? " at their share in hybrid cells" : "") + ", E " + general(youngs, 4) + " Pa, nu " +
+           general(poisson, 3) + ") have the Hertz time " +
+           (std::isfinite(hertz) ? general(hertz, 4) + " s at relative speed " + general(speed, 3) + " m/s"
+                                 : std::string("of grains at rest (none)")) +
+           " and the Rayleigh time " + general(rayleigh, 4) + " s (LIGGGHTS's estimates; the check takes the shorter "
+           "of the Hertz time and twice the Rayleigh time, tc = " + general(c.tc, 4) + " s)";
+  return c;
+}
+
+bool warn_poor_step(double steps, double warn_below, double &fewest_warned) {
+  if (steps >= warn_below || steps >= 0.9 * fewest_warned) return false;
+  fewest_warned = steps;
+  return true;
+}
+
+std::string poor_step_warning(double dt, const std::string &when, const std::string &why) {
+  return "Fix hybrid/mpm: the time step " + general(dt, 6) + " s resolves the contacts poorly " + when + ": " + why;
+}
+
 std::string unchecked_pair_style(const std::string &pair_style) {
   return "Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and gran/hooke/history only; check it "
          "yourself for pair style " + pair_style + " (at least " + general(kSafeStepsPerContact, 6) +

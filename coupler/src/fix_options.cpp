@@ -138,6 +138,22 @@ std::string resolve_grid(FixOptions &o, int dimension, double grain_diameter) {
          general(packing, 3);
 }
 
+std::string grid_of_run(FixOptions &o, int dimension, std::int64_t grains, std::string &problem) {
+  const double diameter = o.continuum.grain_diameter;
+  const std::string line = resolve_grid(o, dimension, grains > 0 || o.diameter_given ? diameter : 0.0);
+  problem.clear();
+  // With cells under 2 grain diameters the oracle's packing fraction per cell counts one or two
+  // grains and a cell's rests land on a few points: a published 2D collapse with 1.74 d cells
+  // went non-finite as its continuum shrank (issue 14), while the same scene ran with 5 d cells.
+  // (2 % slack: a deck's cell of 2 nominal diameters passes whatever its grains' sampled mean)
+  if (o.adaptive() && o.cell < 0.98 * kSmallestCellInGrains * diameter)
+    problem = "cell " + shortest(o.cell) + " is under " + shortest(kSmallestCellInGrains) +
+              " grain diameters (mean diameter " + general(diameter, 4) +
+              "): adaptive zones need cells that hold several grains. Use cell " +
+              general(kSmallestCellInGrains * diameter, 4) + " or more";
+  return line;
+}
+
 RezoneLog rezone_log_option(const std::string &value) {
   const auto level = parse_rezone_log(value);
   if (!level)

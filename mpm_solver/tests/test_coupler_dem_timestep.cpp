@@ -103,3 +103,46 @@ TEST(DemStepCheck, NamesTheContactTheStepsAndTheSafeStep) {
             "Fix hybrid/mpm checks the DEM time step for pair styles gran/hooke and gran/hooke/history only; check it "
             "yourself for pair style gran/hertz/history (at least 20 steps per contact)");
 }
+
+// LIGGGHTS's Hertz time is the duration of a Hertzian collision, F = 4/3 Y sqrt(r/2) delta^1.5
+// between two grains of radius r (Y = E / (2 (1 - nu^2)), r/2 their effective radius), for the
+// effective mass it is given: integrated here with velocity Verlet at a fine step
+TEST(ElasticStepCheck, HertzTimeIsTheDurationOfAHertzianCollision) {
+  const double r = 0.001, m_eff = 0.5 * 2500 * 4.0 / 3.0 * M_PI * r * r * r, E = 5e6, nu = 0.3, v0 = 0.5;
+  const double y = E / (2 * (1 - nu * nu)), k = 4.0 / 3.0 * y * std::sqrt(0.5 * r);
+  const double estimate = coupler::hertz_time(r, m_eff, E, nu, v0);
+  const double dt = estimate / 200000;
+  double x = 0, v = v0, t = 0;
+  auto accel = [&](double x_) { return x_ > 0 ? -k / m_eff * std::pow(x_, 1.5) : 0.0; };
+  double a = accel(x);
+  do {
+    v += 0.5 * dt * a;
+    x += dt * v;
+    a = accel(x);
+    v += 0.5 * dt * a;
+    t += dt;
+  } while (x > 0);
+  EXPECT_NEAR(estimate, t, 0.002 * t);    // 2.87 is 2.868 rounded
+  EXPECT_TRUE(std::isinf(coupler::hertz_time(r, m_eff, E, nu, 0.0)));
+  // slower collisions last longer: t ~ v^(-1/5)
+  EXPECT_NEAR(coupler::hertz_time(r, m_eff, E, nu, v0 / 32) / estimate, 2.0, 1e-12);
+}
+
+TEST(ElasticStepCheck, RayleighTimeAndTheShorterOfTheTwo) {
+  const double r = 0.001, m = 2500 * 4.0 / 3.0 * M_PI * r * r * r, E = 5e6, nu = 0.3;
+  // pi r sqrt(rho / G) / (0.1631 nu + 0.8766), G = E / 2.6
+  EXPECT_NEAR(coupler::rayleigh_time(r, m, E, nu), M_PI * r * std::sqrt(2500 * 2.6 / E) / 0.92553, 1e-15);
+  // a rigid-ish material at low speed: the Rayleigh bound decides
+  const auto slow = coupler::check_elastic_step("hertz", r, m, 5e9, nu, 0.01, false, 1e-6);
+  EXPECT_DOUBLE_EQ(slow.tc, coupler::kRayleighContactFactor * coupler::rayleigh_time(r, m, 5e9, nu));
+  EXPECT_DOUBLE_EQ(slow.steps, slow.tc / 1e-6);
+  // a soft one at high speed: the Hertz time
+  const auto fast = coupler::check_elastic_step("hooke", r, m, 1e5, nu, 5.0, true, 1e-5);
+  EXPECT_DOUBLE_EQ(fast.tc, coupler::hertz_time(r, m, 1e5, nu, 5.0));
+  EXPECT_NE(fast.what.find("pair style gran model hooke"), std::string::npos) << fast.what;
+  EXPECT_NE(fast.what.find("at their share in hybrid cells"), std::string::npos) << fast.what;
+  // grains at rest: the Rayleigh time only
+  const auto rest = coupler::check_elastic_step("hertz", r, m, E, nu, 0.0, false, 1e-5);
+  EXPECT_TRUE(std::isfinite(rest.tc));
+  EXPECT_NE(rest.what.find("of grains at rest (none)"), std::string::npos) << rest.what;
+}

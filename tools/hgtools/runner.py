@@ -8,6 +8,7 @@ Codes:
     lammps    Debian's stock LAMMPS (`lmp`, or `exe`)
     liggghts  Debian's LIGGGHTS 3.8 (`liggghts`, or `exe`), with -nocite
     hybrid    lmp_hybrid + mpm_solver --coupled in one MPMD job (tools/hybrid_launch.py composes it)
+    hybrid_liggghts  liggghts_hybrid + mpm_solver --coupled (hybrid_launch.py --host liggghts)
 All run with `-log LOG -screen none -var NAME VALUE ...`, more than one rank through
 tools/mpirun.sh, in the log's directory unless `cwd` says otherwise. `run_mpm` runs mpm_solver
 alone on a scene file (its output is the log).
@@ -31,7 +32,7 @@ from pathlib import Path
 TOOLS = Path(__file__).resolve().parent.parent
 REPO = TOOLS.parent
 SOLVER = Path(os.environ.get("HYBRID_BUILD_DIR", REPO / "build")) / "mpm_solver" / "mpm_solver"
-CODES = ("lammps", "liggghts", "hybrid")
+CODES = ("lammps", "liggghts", "hybrid", "hybrid_liggghts")
 EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
 
 
@@ -92,8 +93,9 @@ def command(code: str, deck: Path, variables: dict, log: Path, np_: int = 1, exe
     args = ["-log", str(log), "-screen", "none"]
     for k, v in variables.items():
         args += ["-var", k, str(v)]
-    if code == "hybrid":
-        return [sys.executable, str(TOOLS / "hybrid_launch.py"), "-np", str(np_), str(deck), *args]
+    if code in ("hybrid", "hybrid_liggghts"):
+        host = ["--host", "liggghts"] if code == "hybrid_liggghts" else []
+        return [sys.executable, str(TOOLS / "hybrid_launch.py"), *host, "-np", str(np_), str(deck), *args]
     if code not in EXECUTABLES:
         raise ValueError(f"unknown code {code!r} (known: {', '.join(CODES)})")
     exe = exe or shutil.which(EXECUTABLES[code])
@@ -129,25 +131,33 @@ def run_mpm(scene: Path, *args: str, threads: int | None = None, timeout: float 
 class Forms:
     """The decks of one scene, under input_decks/<scene>/: the LAMMPS deck, its LIGGGHTS twin and
     the hybrid twin's include (the hybrid runs the LAMMPS deck with `hybrid 1` and `hdeck` the
-    include; None: the deck holds its hybrid twin itself)."""
+    include; None: the deck holds its hybrid twin itself); hybrid_liggghts: the LIGGGHTS-hosted
+    hybrid twin's include (code hybrid_liggghts runs the LIGGGHTS deck with it)."""
     scene: str
     lammps: str = "dem_3d.lmp"
     liggghts: str | None = "liggghts_3d.in"
     hybrid: str | None = "hybrid_3d.lmp"
+    hybrid_liggghts: str | None = None
 
     def deck(self, code: str) -> Path:
-        name = self.liggghts if code == "liggghts" else self.lammps
+        name = self.liggghts if code in ("liggghts", "hybrid_liggghts") else self.lammps
         return REPO / "input_decks" / self.scene / name
 
-    def hybrid_deck(self) -> Path:
-        return REPO / "input_decks" / self.scene / self.hybrid
+    def hybrid_deck(self, code: str = "hybrid") -> Path:
+        name = self.hybrid_liggghts if code == "hybrid_liggghts" else self.hybrid
+        if name is None:
+            raise ValueError(f"scene {self.scene} has no {code} twin")
+        return REPO / "input_decks" / self.scene / name
 
     def variables(self, code: str, variables: dict, hybrid_vars: dict | None = None) -> dict:
         """The deck variables of `code`: the hybrid twin's (hybrid 1, hdeck, then hybrid_vars, which
-        may override them) added for the hybrid."""
-        if code != "hybrid":
+        may override them) added for the hybrids."""
+        if code not in ("hybrid", "hybrid_liggghts"):
             return dict(variables)
-        twin = {"hybrid": 1} | ({"hdeck": self.hybrid_deck()} if self.hybrid else {})
+        if code == "hybrid_liggghts":    # always its own include (an error for a scene without one)
+            twin = {"hybrid": 1, "hdeck": self.hybrid_deck(code)}
+        else:
+            twin = {"hybrid": 1} | ({"hdeck": self.hybrid_deck()} if self.hybrid else {})
         return {**variables, **twin, **(hybrid_vars or {})}
 
     def run(self, code: str, variables: dict, log: Path, hybrid_vars: dict | None = None, **kwargs) -> Run:

@@ -5,6 +5,7 @@
 // couples, the drift of their carried mass. Host-neutral.
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "coupler/grid_geometry.hpp"
@@ -58,5 +59,56 @@ std::vector<int> coupled_grains(const DemGrains &g, ZoneOf &&zone_of) {
 /// Carried mass over weight times solid mass of this rank's grains of the group: out[0] the
 /// lightest's, negated, out[1] the heaviest's (for a max-reduction over the ranks).
 void mass_drift(const DemGrains &g, const GrainRules &rules, double out[2]);
+
+
+/// The fix's per-atom arrays that travel with a grain (a host's fix allocates them and hands
+/// them to its exchange and copy callbacks): weight, support acceleration, stored stress.
+struct GrainArrays {
+  static constexpr int kValues = 1 + 3 + 6;    ///< doubles per atom in an exchange buffer
+  double *weight = nullptr;
+  double **support = nullptr;    ///< [n][3]
+  double **stress = nullptr;     ///< [n][6]
+  void copy(int from, int to) const;
+  void reset(int i) const;       ///< a new atom: weight 1, no support, no stored stress
+  int pack(int i, double *buf) const;
+  int unpack(int i, const double *buf) const;
+  /// Restart files hold weight and support (a rezone left pending at the end of a run is
+  /// dropped): kRestartValues doubles, the count first (LAMMPS's convention).
+  static constexpr int kRestartValues = 1 + 1 + 3;
+  int pack_restart(int i, double *buf) const;
+  void unpack_restart(int i, const double *values) const;    ///< values: this fix's, count first
+};
+
+/// Local atoms with a non-zero support acceleration (after atoms were reordered).
+std::vector<int> supported_grains(double *const *support, int n);
+
+/// Deletes the flagged ones of n local atoms as LAMMPS's fix evaporate does: from the end,
+/// the last atom moves into the gap (move(from, to) copies every per-atom array); returns the
+/// new n.
+int delete_flagged(const std::vector<char> &flags, int n, const std::function<void(int, int)> &move);
+
+/// The view of a host's atoms: its per-atom arrays (n local atoms) and the fix's.
+inline DemGrains grain_view(int n, double **x, double **v, double **omega, double *radius, double *rmass,
+                            const int *mask, int groupbit, const GrainArrays &arrays) {
+  DemGrains g;
+  g.n = n, g.x = x, g.v = v, g.omega = omega, g.radius = radius, g.rmass = rmass;
+  g.mask = mask, g.groupbit = groupbit, g.weight = arrays.weight, g.stress = arrays.stress;
+  return g;
+}
+
+/// This rank's atoms for an output frame of the MPM process's file (tag: the host's atom IDs;
+/// zone_of(x): the zone of a position).
+template <class Tag, class ZoneOf>
+std::vector<GrainRecord> frame_records(const DemGrains &g, const Tag *tag, ZoneOf &&zone_of) {
+  std::vector<GrainRecord> records(static_cast<std::size_t>(g.n));
+  for (int i = 0; i < g.n; i++) {
+    GrainRecord &r = records[static_cast<std::size_t>(i)];
+    r.id = static_cast<std::int64_t>(tag[i]);
+    for (int a = 0; a < 3; a++) r.x[a] = g.x[i][a], r.v[a] = g.v[i][a];
+    r.radius = g.radius[i], r.mass = g.rmass[i], r.weight = g.weight[i];
+    r.zone = zone_of(g.x[i]);
+  }
+  return records;
+}
 
 }    // namespace coupler

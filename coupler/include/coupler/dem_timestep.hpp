@@ -63,6 +63,29 @@ struct DemStepCheck {
 DemStepCheck check_dem_step(const std::string &pair_style, const HookeanContact &contact, double lightest, bool split,
                             double dt);
 
+/// LIGGGHTS's Young's-modulus contact models (model hooke, model hertz) as its fix
+/// check/timestep/gran estimates them, for a grain of radius r and mass m (density m over its
+/// volume) of a material E, nu: the Rayleigh time pi r sqrt(rho / G) / (0.1631 nu + 0.8766),
+/// G = E / (2 (1 + nu)), and the Hertz time of its collision with its like at relative speed v,
+/// 2.87 (m^2 / (r/2 Y^2 v))^(1/5), Y = E / (2 (1 - nu^2)) (infinite for v = 0).
+double rayleigh_time(double radius, double mass, double youngs, double poisson);
+double hertz_time(double radius, double mass, double youngs, double poisson, double speed);
+/// DEM practice asks for dt <= 0.2 of the Rayleigh time; the check counts twice the Rayleigh time
+/// as a contact time, so that its kWarnStepsPerContact steps are that bound.
+inline constexpr double kRayleighContactFactor = 2.0;
+/// The check of such a model `model` ("hertz", "hooke") for the lightest grains (radius, mass
+/// at their share where the coupling splits grains) at relative speed v, at DEM step dt: the
+/// contact time is the shorter of the Hertz time and twice the Rayleigh time; the same steps per
+/// contact as for Hookean pairs.
+DemStepCheck check_elastic_step(const std::string &model, double radius, double mass, double youngs, double poisson,
+                                double speed, bool split, double dt);
+
+/// Whether a check's steps per contact call for a warning: fewer than warn_below (keyword
+/// steps_per_contact), and 10 % fewer than at the last warning (`fewest_warned`, updated).
+bool warn_poor_step(double steps, double warn_below, double &fewest_warned);
+/// "Fix hybrid/mpm: the time step <dt> s resolves the contacts poorly <when>: <why>"
+std::string poor_step_warning(double dt, const std::string &when, const std::string &why);
+
 /// The warning for a pair style the check does not know.
 std::string unchecked_pair_style(const std::string &pair_style);
 

@@ -4,6 +4,7 @@
 // a host's fix hands its keyword/value words to parse_fix_options and turns an OptionError
 // into its own input error ("Illegal fix hybrid/mpm command: " + what()).
 
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <stdexcept>
@@ -98,6 +99,12 @@ double grid_packing(const FixOptions &options, int dimension);
 /// from a restart file is kept), then the oracle's defaults that follow from the cell. Returns
 /// the line that says what was chosen and how many grains a point carries. Throws OptionError.
 std::string resolve_grid(FixOptions &options, int dimension, double grain_diameter);
+
+/// The grid of a host's first run over a group of `grains` grains, whose mean diameter the options
+/// then hold (the keyword diameter's or the grains'): resolve_grid, then the check that adaptive
+/// zones' cells hold several grains (kSmallestCellInGrains). Returns resolve_grid's line; throws
+/// OptionError for a bad option (an "Illegal fix" error) and sets `problem` for too small a cell.
+std::string grid_of_run(FixOptions &options, int dimension, std::int64_t grains, std::string &problem);
 
 /// rezone_log's value (OptionError for another).
 RezoneLog rezone_log_option(const std::string &value);

@@ -1,0 +1,200 @@
+#pragma once
+// The DEM side's two coupled steps as whole sequences, for every host's fix (LAMMPS's and
+// LIGGGHTS's fix hybrid/mpm): a coupling exchange (grains -> nodes, the agreement, the grains'
+// velocity updates and support accelerations) and a rezone (zones, the moving cells' grain
+// sums, enrichment, the MPM process's corrections, deletions, the support force). The host
+// supplies its atoms (coupler/dem_grains.hpp) and the few things only it can do (create and
+// delete atoms); it turns a failed outcome into its own error. Collective over the DEM ranks.
+#include <mpi.h>
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "coupler/dem_grains.hpp"
+#include "coupler/dem_rezone.hpp"
+#include "coupler/dem_session.hpp"
+#include "coupler/fix_options.hpp"
+#include "coupler/rezone_log.hpp"
+#include "coupler/transfer.hpp"
+
+namespace coupler {
+
+/// What an exchange did on this rank (and, `coupled`, on all DEM ranks).
+struct ExchangeTally {
+  std::int64_t coupled = 0;    ///< grains coupled, all ranks
+  double applying = 0.0;       ///< s spent applying the velocity updates (inside the round trip)
+  double framing = 0.0;        ///< s spent collecting the output frame's grains (inside the round trip)
+  double kicked = 0.0;         ///< kinetic energy the agreement added to this rank's grains (energy ledger)
+};
+
+/// One coupling exchange. `index`: this rank's coupled grains (coupled_grains); `header` is
+/// sent with n_grains set to their count over the ranks. The agreed velocities change g.v;
+/// support[i] becomes each coupled grain's support acceleration (zero for the others that had
+/// one) and `supported` lists the grains with a non-zero one. Local outcome (settle it).
+template <int D>
+StepOutcome exchange_grains(DemSession &session, MPI_Comm comm, GrainTransfer<D> &transfer, const DemGrains &g,
+                            const std::vector<int> &index, StepHeader header, double pic, double **support,
+                            std::vector<int> &supported,
+                            const std::function<std::vector<GrainRecord>()> &frame_grains, StepAck &ack,
+                            ExchangeTally &tally);
+
+/// What a rezone needs the host to do to its atoms.
+template <int D>
+struct RezoneAtoms {
+  std::function<DemGrains()> grains;    ///< this rank's atoms now (creating atoms may move the arrays)
+  /// Makes the planned grain if its position is in this rank's sub-domain (mass share times
+  /// its solid mass, weight share, the group's mask and type); true if made.
+  std::function<bool(const PlannedGrain<D> &)> make;
+  /// Deletes the flagged local atoms (flags as apply_corrections returns them).
+  std::function<void(const std::vector<char> &)> remove;
+  /// Grid cells in the discrete regions now (adaptive runs).
+  std::function<std::vector<std::uint64_t>()> discrete_cells;
+};
+
+/// What a rezone did, over all DEM ranks.
+struct RezoneCounts {
+  std::int64_t deleted = 0, made = 0, hybrid = 0;
+  double oracle_wait = 0.0;    ///< s this rank waited for the new zone map (the oracle)
+};
+
+/// Everything a rezone needs besides the host's atoms.
+template <int D>
+struct RezonePlan {
+  const GridGeometry<D> *grid = nullptr;
+  StepHeader header;                     ///< kind kStepRezone, its zone source
+  const OracleSettings *oracle = nullptr;
+  const PackingTemplate<D> *packing = nullptr;
+  GrainRules rules;
+  double grain_diameter = 0.0;
+  double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};    ///< the continuum's container
+};
+
+/// A rezone (coupler/protocol.hpp): the zones change (`zones` takes the new map), the material
+/// of every cell whose zone changed moves between grains and points, the grains' support force
+/// after it goes to the MPM process. `support` is the host's per-atom support acceleration
+/// (read after the deletions). Settled outcome: the same on all ranks; on a failure the rezone
+/// stopped at that message.
+template <int D>
+StepOutcome rezone_grains(DemSession &session, MPI_Comm comm, const RezonePlan<D> &plan,
+                          std::vector<signed char> &zones, RezoneAtoms<D> &atoms, double *const *support,
+                          StepAck &ack, RezoneCounts &counts);
+
+/// The rezone's report line fields from its counts, acknowledgement and mass drift (the
+/// carried masses' extremes: drift[0] the lightest, negated, drift[1] the heaviest, all ranks).
+RezoneReport rezone_report(std::int64_t step, const RezoneCounts &counts, const StepAck &ack, double weight,
+                           const double drift[2]);
+
+/// After a rezone, over all DEM ranks: the carried masses' drift from their share of the solid
+/// mass (drift[0] the lightest's, negated, drift[1] the heaviest's) and the largest atom ID
+/// (from this rank's `max_tag`; new atoms have ID 0 until the host numbers them).
+struct RezoneAftermath {
+  double drift[2] = {0, 0};
+  std::int64_t max_tag = 0;
+};
+RezoneAftermath rezone_aftermath(const DemGrains &g, const GrainRules &rules, std::int64_t max_tag, MPI_Comm comm);
+
+/// Whether an exchange sends an output frame: every output_every-th exchange (from the first,
+/// exchange count `exchanges` before it) and the forced one at the end of a run; never for 0.
+inline bool output_frame_due(int output_every, std::int64_t exchanges, bool forced) {
+  return output_every > 0 && (forced || exchanges % output_every == 0);
+}
+
+/// Totals of grains plus points before and after a rezone (mass, momentum, angular momentum):
+/// the grains' (summed over the ranks) with the continuum's from the acknowledgement.
+void rezone_totals(const double grains_before[7], const double grains_after[7], const StepAck &ack, double before[7],
+                   double after[7]);
+
+/// An error message if `made` new atoms (and `deleted` deleted) would overflow a host's atom
+/// count (natoms, largest allowed max_natoms) or its atom IDs (largest ID in use max_tag,
+/// largest allowed max_id); "" if they fit. `id_hint` says how to get larger IDs on this host.
+std::string new_atoms_problem(std::int64_t made, std::int64_t deleted, std::int64_t natoms, std::int64_t max_natoms,
+                              std::int64_t max_tag, std::int64_t max_id, std::int64_t step,
+                              const std::string &host, const std::string &id_hint);
+
+
+/// The handshake a host's fix sends: its options, box, step and time; the continuum's
+/// container from the options (an error message in `problem` if an edge lies outside the box).
+/// Gravity and the agreement time must be in options.continuum already.
+Hello make_hello(const FixOptions &options, const std::string &host, const std::string &units, int dimension,
+                 double dt, const double box_lo[3], const double box_hi[3], std::int64_t step, double time,
+                 std::string &problem);
+
+/// The group's grains on all DEM ranks, for the defaults of the continuum (mean diameter,
+/// solid density) and of the grains made from points (size spread, groups, type).
+struct GroupGrains {
+  std::int64_t count = 0;
+  double diameter_sum = 0.0, solid_mass_sum = 0.0, volume_sum = 0.0;
+  double dmin = 0.0, dmax = 0.0;
+  int common_mask = ~0;    ///< the group bits every grain of the group has
+  int smallest_type = 0;
+};
+/// Collective over comm. `type`: the host's per-atom type array (ntypes + 1 where the group is empty).
+GroupGrains group_grains(const DemGrains &g, const int *type, int ntypes, int dimension, MPI_Comm comm);
+/// The options' defaults from the group's grains (mean diameter, solid density unless given,
+/// the new grains' type unless given); returns the new grains' mask and sets `polydispersity`.
+int apply_group_defaults(FixOptions &options, const GroupGrains &gg, int groupbit, double &polydispersity);
+
+/// The index of the first of `n` regions that holds no cell centre of the box (match(k, x):
+/// region k holds point x), -1 if every one holds one: such a region converts nothing and is a
+/// mistake (smaller than a cell, or outside the box).
+template <int D>
+int first_empty_region(const GridGeometry<D> &grid, const double box_lo[3], const double box_hi[3], int n,
+                       const std::function<bool(int, const double *)> &match);
+/// Grid cells overlapping the box, per Zone (the padding cells around it are continuum by convention).
+template <int D>
+void zone_counts(const GridGeometry<D> &grid, const std::vector<signed char> &zones, const double box_lo[3],
+                 const double box_hi[3], std::int64_t counts[3]);
+/// "fix hybrid/mpm: N grid cells in the box: C continuum, H hybrid, D discrete"
+std::string zone_counts_line(const std::int64_t counts[3]);
+
+/// The fix's global record in a host's restart file: its cell, the exchanges so far, `every`,
+/// whether the conversion happened (the MPM state then lives in the file written next to the
+/// restart file), the coupling's clock.
+struct RestartRecord {
+  static constexpr int kValues = 6;
+  double cell = 0.0;
+  std::int64_t exchanges = 0;
+  int every = 1;
+  bool converted = false;
+  double time = 0.0;
+  std::int64_t step = 0;
+  void write(double out[kValues]) const;
+  static RestartRecord read(const double *in);
+  /// The run's cell: a cell the grains chose (none on the input, `input_cell` <= 0) is the file's,
+  /// the one the run started with (its grains have changed since); a given one is kept, with a
+  /// warning if the file's differs ("" if not).
+  std::string take_cell(double &input_cell) const;
+  /// An error if the conversion happened and no MPM state is given ("" if fine).
+  std::string state_problem(const std::string &mpm_state_path) const;
+};
+/// "fix hybrid/mpm: MPM state saved to|loaded from PATH (N material points)"
+std::string state_line(int kind, const std::string &path, std::int64_t points);
+
+/// The MPM process keeps the gravity of the handshake (and the energy ledger its potential
+/// energy): an error message if `now` differs from `then` beyond round-off, "" if not.
+std::string gravity_change_problem(const double then[3], const double now[3]);
+
+/// The continuum's constants from the calibrated material (keyword material) for the deck's
+/// contact law `deck` (its mean_mass from the grains' mean diameter and density): an error
+/// message if the material was calibrated for another law, "" when the constants were set.
+std::string apply_deck_material(FixOptions &options, DeckContact deck);
+/// "fix hybrid/mpm: material NAME (PATH): Young's modulus ... Pa, ..., critical packing ..."
+std::string material_line(const FixOptions &options);
+
+/// The start of a DEM program of the coupled MPMD job (lmp_hybrid, liggghts_hybrid): MPI_Init,
+/// MPI_COMM_WORLD split by colour (kDemColor; mpm_solver takes kMpmColor, so the host never
+/// sees the MPM ranks; run alone the split is a no-op), the MPI_Finalize hook installed with
+/// the end-of-job barrier left to it (the hosts' Error::all ends in MPI_Finalize + exit(1)).
+/// Returns the DEM ranks' communicator; aborts the job naming `program` on a failure.
+MPI_Comm start_dem_job(int *argc, char ***argv, const char *program);
+/// Its normal end: the MPM process is told if no fix ever connected (`unconnected`: why), then
+/// the end-of-job barrier (coupler/protocol.hpp) and MPI_Finalize.
+void end_dem_job(MPI_Comm dem_comm, const std::string &unconnected);
+/// The normal end of the coupled run when the fix is deleted (unfix, clear, end of input): the
+/// MPM process exits 0 and the peer is forgotten. Returns the log line, or "" with the failure
+/// to tell it in `warning`.
+std::string finish_coupled_run(Link &link, std::int64_t last_step, std::string &warning);
+
+}    // namespace coupler

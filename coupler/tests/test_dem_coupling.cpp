@@ -1,0 +1,178 @@
+// The pieces of the DEM side's coupled steps that the LAMMPS and LIGGGHTS fixes share
+// (coupler/dem_coupling.hpp, coupler/dem_grains.hpp): per-atom arrays, deletions, the
+// group's defaults over the ranks, zone counts, the handshake's container check, the
+// rezone's totals and atom-count limits. Runs in coupler_mpi_tests on 2 ranks.
+#include <gtest/gtest.h>
+#include <mpi.h>
+
+#include <vector>
+
+#include "coupler/dem_coupling.hpp"
+
+namespace {
+
+int ranks() {
+  int n = 1;
+  MPI_Comm_size(MPI_COMM_WORLD, &n);
+  return n;
+}
+
+// n atoms' arrays, as a host keeps them (double**)
+struct Atoms {
+  std::vector<double> weight, support_data, stress_data, x_data, v_data, omega_data, radius, rmass;
+  std::vector<double *> support, stress, x, v, omega;
+  std::vector<int> mask, type;
+  explicit Atoms(int n)
+      : weight(n, 1.0), support_data(3 * n, 0.0), stress_data(6 * n, 0.0), x_data(3 * n, 0.0), v_data(3 * n, 0.0),
+        omega_data(3 * n, 0.0), radius(n, 0.001), rmass(n, 1.0), mask(n, 1 | 2), type(n, 1) {
+    for (int i = 0; i < n; i++) {
+      support.push_back(&support_data[3 * i]), stress.push_back(&stress_data[6 * i]);
+      x.push_back(&x_data[3 * i]), v.push_back(&v_data[3 * i]), omega.push_back(&omega_data[3 * i]);
+    }
+  }
+  coupler::GrainArrays arrays() {
+    coupler::GrainArrays a;
+    a.weight = weight.data(), a.support = support.data(), a.stress = stress.data();
+    return a;
+  }
+  coupler::DemGrains grains(int n) {
+    return coupler::grain_view(n, x.data(), v.data(), omega.data(), radius.data(), rmass.data(), mask.data(), 2,
+                               arrays());
+  }
+};
+
+TEST(DemCoupling, GrainArraysTravelWhole) {
+  Atoms a(2);
+  a.weight[0] = 0.25;
+  for (int k = 0; k < 3; k++) a.support[0][k] = k + 1.0;
+  for (int k = 0; k < 6; k++) a.stress[0][k] = 10.0 + k;
+  double buf[coupler::GrainArrays::kValues];
+  ASSERT_EQ(a.arrays().pack(0, buf), coupler::GrainArrays::kValues);
+  ASSERT_EQ(a.arrays().unpack(1, buf), coupler::GrainArrays::kValues);
+  EXPECT_EQ(a.weight[1], 0.25);
+  EXPECT_EQ(a.support[1][2], 3.0);
+  EXPECT_EQ(a.stress[1][5], 15.0);
+  a.arrays().reset(0);
+  EXPECT_EQ(a.weight[0], 1.0);
+  EXPECT_EQ(a.support[0][0], 0.0);
+  EXPECT_EQ(a.stress[0][3], 0.0);
+  EXPECT_EQ(coupler::supported_grains(a.support.data(), 2), std::vector<int>{1});
+}
+
+TEST(DemCoupling, DeletionMovesTheLastAtomsIntoTheGaps) {
+  // atoms 0..5 hold their own index; delete 1 and 4
+  std::vector<int> id = {0, 1, 2, 3, 4, 5};
+  const std::vector<char> flags = {0, 1, 0, 0, 1, 0};
+  const int n = coupler::delete_flagged(flags, 6, [&](int from, int to) { id[to] = id[from]; });
+  ASSERT_EQ(n, 4);
+  EXPECT_EQ(std::vector<int>(id.begin(), id.begin() + n), (std::vector<int>{0, 5, 2, 3}));
+}
+
+TEST(DemCoupling, GroupDefaultsOverTheRanks) {
+  // every rank: two grains of the group (diameters 2 and 4 mm), one atom outside it
+  Atoms a(3);
+  a.radius = {0.001, 0.002, 0.005};
+  a.type = {3, 2, 1};
+  a.mask = {1 | 2 | 8, 1 | 2, 1};
+  a.weight = {1.0, 0.5, 1.0};
+  const double pi = 3.14159265358979323846, rho = 2500.0;
+  for (int i = 0; i < 3; i++) a.rmass[i] = a.weight[i] * rho * 4.0 / 3.0 * pi * a.radius[i] * a.radius[i] * a.radius[i];
+  const coupler::GroupGrains gg = coupler::group_grains(a.grains(3), a.type.data(), 3, 3, MPI_COMM_WORLD);
+  EXPECT_EQ(gg.count, 2 * ranks());
+  EXPECT_DOUBLE_EQ(gg.dmin, 0.002);
+  EXPECT_DOUBLE_EQ(gg.dmax, 0.004);
+  EXPECT_EQ(gg.smallest_type, 2);
+  coupler::FixOptions opt;
+  double polydispersity = 0.0;
+  const int mask = coupler::apply_group_defaults(opt, gg, 2, polydispersity);
+  EXPECT_EQ(mask, 1 | 2);    // bit 8 is not on every grain
+  EXPECT_DOUBLE_EQ(opt.continuum.grain_diameter, 0.003);
+  EXPECT_NEAR(opt.continuum.grain_density, rho, 1e-9 * rho);    // solid mass: rmass / weight
+  EXPECT_EQ(opt.grain_type, 2);
+  EXPECT_DOUBLE_EQ(polydispersity, 1.0 / 3.0);
+}
+
+TEST(DemCoupling, ZoneCountsAndEmptyRegions) {
+  const double lo[3] = {0, 0, 0}, hi[3] = {0.1, 0.1, 0.1};
+  const auto grid = coupler::padded_grid<3>(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.1, 0.1, 0.1), 0.01);
+  std::vector<signed char> zones(coupler::num_cells<3>(grid), coupler::kDiscrete);
+  std::int64_t n[3];
+  coupler::zone_counts<3>(grid, zones, lo, hi, n);
+  EXPECT_EQ(n[coupler::kDiscrete], 11 * 11 * 11);    // the padded grid's cells overlapping the box
+  EXPECT_EQ(n[coupler::kContinuum] + n[coupler::kHybrid], 0);
+  // region 0: a cube around the box centre (holds cell centres); region 1: smaller than a cell
+  // and between cell centres (holds none)
+  auto match = [](int k, const double *x) {
+    const double h = k == 0 ? 0.02 : 0.002, c = k == 0 ? 0.05 : 0.05;
+    return std::abs(x[0] - c) < h && std::abs(x[1] - c) < h && std::abs(x[2] - c) < h;
+  };
+  EXPECT_EQ(coupler::first_empty_region<3>(grid, lo, hi, 1, match), -1);
+  EXPECT_EQ(coupler::first_empty_region<3>(grid, lo, hi, 2, match), 1);
+}
+
+TEST(DemCoupling, HelloRefusesAContainerOutsideTheBox) {
+  coupler::FixOptions opt;
+  opt.cell = 0.01;
+  const double lo[3] = {0, 0, 0}, hi[3] = {0.1, 0.1, 0.1};
+  std::string problem;
+  coupler::Hello h = coupler::make_hello(opt, "LIGGGHTS 3.8.0", "si", 3, 1e-5, lo, hi, 7, 7e-5, problem);
+  EXPECT_EQ(problem, "");
+  EXPECT_EQ(h.continuum.container_hi[2], 0.1);
+  EXPECT_EQ(h.step, 7);
+  EXPECT_STREQ(h.host, "LIGGGHTS 3.8.0");
+  opt.container_given[3] = true, opt.container_value[3] = 0.2;    // yhi
+  coupler::make_hello(opt, "LIGGGHTS 3.8.0", "si", 3, 1e-5, lo, hi, 7, 7e-5, problem);
+  EXPECT_EQ(problem, "container y hi = 0.2 lies outside the box (0 to 0.1)");
+}
+
+TEST(DemCoupling, RezoneTotalsAndAtomLimits) {
+  coupler::StepAck ack;
+  ack.mass = 2.0, ack.momentum[1] = 3.0, ack.angular[2] = 4.0;
+  for (int k = 0; k < 7; k++) ack.before[k] = 0.5;
+  const double gb[7] = {1, 1, 1, 1, 1, 1, 1}, ga[7] = {0, 0, 0, 0, 0, 0, 0};
+  double before[7], after[7];
+  coupler::rezone_totals(gb, ga, ack, before, after);
+  EXPECT_EQ(before[0], 1.5);
+  EXPECT_EQ(after[0], 2.0);
+  EXPECT_EQ(after[2], 3.0);
+  EXPECT_EQ(after[6], 4.0);
+  EXPECT_EQ(coupler::new_atoms_problem(10, 0, 100, 1000, 50, 1000, 3, "LIGGGHTS", "hint"), "");
+  EXPECT_NE(coupler::new_atoms_problem(10, 0, 995, 1000, 50, 1000, 3, "LIGGGHTS", "hint").find("too many total atoms"),
+            std::string::npos);
+  EXPECT_NE(coupler::new_atoms_problem(10, 0, 100, 1000, 995, 1000, 3, "LIGGGHTS", "hint").find("IDs"),
+            std::string::npos);
+  EXPECT_TRUE(coupler::output_frame_due(5, 10, false));
+  EXPECT_FALSE(coupler::output_frame_due(5, 11, false));
+  EXPECT_TRUE(coupler::output_frame_due(5, 11, true));
+  EXPECT_FALSE(coupler::output_frame_due(0, 0, true));
+}
+
+TEST(DemCoupling, RestartRecordKeepsTheCellTheRunStartedWith) {
+  coupler::RestartRecord r;
+  r.cell = 0.012;
+  double chosen = -1.0;    // no cell on the input: the grains chose the file's
+  EXPECT_EQ(r.take_cell(chosen), "");
+  EXPECT_EQ(chosen, 0.012);
+  double given = 0.01;     // a given cell wins, with a warning
+  EXPECT_EQ(r.take_cell(given), "Fix hybrid/mpm: restart file has cell 0.012, the input says 0.01; using 0.01");
+  EXPECT_EQ(given, 0.01);
+}
+
+TEST(DemCoupling, GridOfRunRefusesAdaptiveCellsOfFewGrains) {
+  auto opt = coupler::parse_fix_options({"cell", "0.0035", "adaptive", "10"}, 2, 1,
+                                        [](const std::string &) { return false; });
+  opt.continuum.grain_diameter = 0.002;
+  std::string problem;
+  coupler::grid_of_run(opt, 2, 100, problem);
+  EXPECT_EQ(problem, "cell 0.0035 is under 2 grain diameters (mean diameter 0.002): adaptive zones need cells that "
+                     "hold several grains. Use cell 0.004 or more");
+  // chosen from the grains, never too small; with no grains (and no diameter) a cell must be given
+  opt = coupler::parse_fix_options({"adaptive", "10"}, 3, 1, [](const std::string &) { return false; });
+  opt.continuum.grain_diameter = 0.001;
+  EXPECT_NE(coupler::grid_of_run(opt, 3, 100, problem).find("cell 0.004 = 4 mean grain diameters"), std::string::npos);
+  EXPECT_EQ(problem, "");
+  opt = coupler::parse_fix_options({"adaptive", "10"}, 3, 1, [](const std::string &) { return false; });
+  EXPECT_THROW(coupler::grid_of_run(opt, 3, 0, problem), coupler::OptionError);
+}
+
+}    // namespace
