@@ -228,13 +228,9 @@ void FixHybridMPM::connect()
   // gravity of the grains acts on the continuum too (and sets the energy ledger's potential
   // energy); read once here, checked at every later run's setup
   dem_gravity(opt->continuum.gravity);
-  // the agreement's relaxation time: half the stiffest contact's duration, the time over which
-  // grains in contact equalise their velocities (10 steps where the contact time is unknown)
-  if (opt->relax_time < 0.0) {
-    std::string why;
-    const double steps = dem_steps_per_contact(why);
-    opt->continuum.agreement_time = 0.5 * (steps < BIG ? steps : 20.0) * update->dt;
-  } else opt->continuum.agreement_time = opt->relax_time;
+  // the agreement's relaxation time: keyword relax, else from the stiffest contact's duration
+  std::string why;
+  opt->continuum.agreement_time = coupler::agreement_time(opt->relax_time, dem_steps_per_contact(why), update->dt);
   const coupler::Hello hello =
       coupler::make_hello(*opt, fmt::format("LAMMPS {}", lmp->version), update->unit_style, domain->dimension,
                           update->dt, domain->boxlo, domain->boxhi, update->ntimestep, dem_time(), problem);

@@ -59,6 +59,11 @@ DemStepCheck check_elastic_step(const std::string &model, double radius, double 
   return c;
 }
 
+double agreement_time(double relax_time, double steps_per_contact, double dt) {
+  if (relax_time >= 0.0) return relax_time;
+  return 0.5 * (steps_per_contact < 1e19 ? steps_per_contact : 20.0) * dt;
+}
+
 bool warn_poor_step(double steps, double warn_below, double &fewest_warned) {
   if (steps >= warn_below || steps >= 0.9 * fewest_warned) return false;
   fewest_warned = steps;

@@ -416,13 +416,9 @@ void FixHybridMPMLiggghts::connect()
   }
   if (!problem.empty()) fail(problem);
   dem_gravity(opt->continuum.gravity);
-  // the agreement's relaxation time: half the stiffest contact's duration (10 steps where the
-  // contact time is unknown), unless keyword relax gives it
-  if (opt->relax_time < 0.0) {
-    std::string why;
-    const double steps = dem_steps_per_contact(why);
-    opt->continuum.agreement_time = 0.5 * (steps < kBig ? steps : 20.0) * update->dt;
-  } else opt->continuum.agreement_time = opt->relax_time;
+  // the agreement's relaxation time: keyword relax, else from the stiffest contact's duration
+  std::string why;
+  opt->continuum.agreement_time = coupler::agreement_time(opt->relax_time, dem_steps_per_contact(why), update->dt);
   // "Version LIGGGHTS-PUBLIC 3.8.0, compiled ..." -> "LIGGGHTS 3.8.0" (the handshake's short text)
   std::string version(universe->version);
   version = version.substr(0, version.find(','));

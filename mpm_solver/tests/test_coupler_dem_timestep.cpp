@@ -146,3 +146,11 @@ TEST(ElasticStepCheck, RayleighTimeAndTheShorterOfTheTwo) {
   EXPECT_TRUE(std::isfinite(rest.tc));
   EXPECT_NE(rest.what.find("of grains at rest (none)"), std::string::npos) << rest.what;
 }
+
+TEST(DemTimestep, AgreementTimeIsHalfTheContactOrTheKeyword) {
+  // 20 steps per contact of 1e-5 s: half of it; keyword relax wins, 0 included; unknown: 10 steps
+  EXPECT_DOUBLE_EQ(coupler::agreement_time(-1.0, 20.0, 1e-5), 1e-4);
+  EXPECT_DOUBLE_EQ(coupler::agreement_time(3e-4, 20.0, 1e-5), 3e-4);
+  EXPECT_DOUBLE_EQ(coupler::agreement_time(0.0, 20.0, 1e-5), 0.0);
+  EXPECT_DOUBLE_EQ(coupler::agreement_time(-1.0, 1.0e20, 1e-5), 1e-4);
+}

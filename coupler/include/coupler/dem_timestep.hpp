@@ -86,6 +86,12 @@ bool warn_poor_step(double steps, double warn_below, double &fewest_warned);
 /// "Fix hybrid/mpm: the time step <dt> s resolves the contacts poorly <when>: <why>"
 std::string poor_step_warning(double dt, const std::string &when, const std::string &why);
 
+/// The velocity agreement's relaxation time (docs/design.md section 5.2): keyword relax's
+/// `relax_time` if given (>= 0), else half the stiffest contact's duration, the time over which
+/// grains in contact equalise their velocities: `steps_per_contact` DEM steps of `dt` (10 steps
+/// where the contact time is unknown, steps_per_contact >= 1e19).
+double agreement_time(double relax_time, double steps_per_contact, double dt);
+
 /// The warning for a pair style the check does not know.
 std::string unchecked_pair_style(const std::string &pair_style);
 
