@@ -21,6 +21,7 @@ import re
 import pytest
 
 from dem_silo import run_dem_silo
+from hgtools.logs import thermo_rows
 
 WIDTH, HEIGHT, ORIFICE, D = 0.06, 0.08, 0.016, 0.002
 BEVERLOO_FACTOR = 1.5    # the rate within a factor 1.5 of the 2D Beverloo estimate (C is approximate)
@@ -143,8 +144,7 @@ def test_hybrid_silo_discharges_only_grains_made_from_the_continuum(silo_pairs):
         assert 0.5 < lightest <= 1.0 + 1e-9 and 1.0 <= heaviest <= 2.0 + 1e-9, rezones[-1]
         # the thermo row at the end of the last run comes before the last deletion of the
         # grains that fell out: grains + points then, plus what was deleted before it = initial mass
-        rows = [ln.split() for ln in log.splitlines() if re.match(r"^\s*\d+\s+[\d.e+-]+\s+\d+\s+\d+\s", ln)]
-        total_end = float(rows[-1][7])
+        total_end = thermo_rows(log, require="f_couple[8]")[-1]["f_couple[8]"]
         assert total_end + hyb.m_del[-2] == pytest.approx(hyb.mass0, rel=1e-9)
         assert hyb.m_fall[-1] + hyb.m_del[-1] >= 0.5 * hyb.mass0
 
