@@ -26,7 +26,11 @@ predicted speedup = T_DEM / (c_g * grain-steps + c_p * point-substeps + c_x * co
 exchanges), all counts from the hybrid's own thermo rows. Where the measured speedup falls more
 than 20 % short of it, the rest is overhead the model does not hold (rezones, oracle, waiting).
 
-Usage: bench/scale_speed.py [--np 2] [--sizes 40,90,160] [--tdis 0.4] [--seed 12345]
+Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collapse/dem_2d.lmp with
+`hybrid 2`, `hcell 0`): the DEM and the adaptive hybrid collapse from the same cached column to
+rest; error = the final surface's RMS over H0, and the runout's relative error.
+
+Usage: bench/scale_speed.py [--np 2] [--sizes 40,90,160] [--collapse-sizes 50,100,200] [--keep]
 Writes bench/results/scale_speed.json (a list `rows`), scale_speed.md and scale_speed.png.
 """
 from __future__ import annotations
@@ -42,13 +46,17 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
+from column_collapse import combine_surfaces, points_surface, surface_error  # noqa: E402
+from dem_collapse import run as collapse  # noqa: E402
 from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
 from hgtools.logs import thermo_rows  # noqa: E402
+from mpm_results import load_run  # noqa: E402
 
 RESULTS = REPO / "bench" / "results"
 D = 0.002                     # grain diameter, m
 ORIFICE = 10                  # orifice width, d
 DEPTH = 3                     # fill height over width
+ASPECT = 2                    # the collapse's H0 / L0
 
 
 def silo_size(n: int) -> dict:
@@ -105,43 +113,76 @@ def timed(run, **kwargs):
     return run(**kwargs), children_cpu() - before
 
 
-def run_size(n: int, np_: int, tdis: float, seed: int, hcell: str, threads: int, work: Path) -> dict:
+def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int) -> dict:
+    """The cost model's terms and prediction (module docstring), and the hybrid's ledger."""
+    dem_rows = thermo_rows(dem_log, require="v_ng")
+    c_g = dem_loop / steps_weighted(dem_rows, lambda r: r["v_ng"])
+    led = hybrid_ledger(hyb_log, every=10)
+    c_p, c_x = mpm_point_cost(threads), exchange_cost()
+    model = dict(grains=c_g * led["grain_steps"], points=c_p * led["point_substeps"],
+                 exchange=c_x * led["coupled_exchanges"])
+    return dict(predicted_speedup=dem_loop / sum(model.values()), continuum_share=led["share_mean"],
+                cost_per_grain_step_s=c_g, cost_per_point_substep_s=c_p, cost_per_coupled_grain_exchange_s=c_x,
+                model_s=model, coupling_s=led["coupling_s"], mpm_wait_s=led["mpm_wait_s"],
+                rezone_s=led["rezone_s"], points_max=led["points_max"], share_t=led["share_t"], share=led["share"])
+
+
+def speeds(dem, hyb, dem_cpu: float, hyb_cpu: float) -> dict:
+    return dict(speedup=dem.wall_time / hyb.wall_time, loop_speedup=dem.loop_time / hyb.loop_time,
+                cpu_speedup=dem_cpu / hyb_cpu, dem_cpu_s=dem_cpu, hybrid_cpu_s=hyb_cpu, dem_wall_s=dem.wall_time,
+                hybrid_wall_s=hyb.wall_time, dem_loop_s=dem.loop_time, hybrid_loop_s=hyb.loop_time)
+
+
+def run_silo(n: int, np_: int, tdis: float, seed: int, hcell: str, threads: int, work: Path) -> dict:
     size = silo_size(n)
     common = dict(**size, np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
     prepare_silo(size["width"], size["height"], D, seed, work / f"prep_{n}", np_=np_, timeout=4 * 3600)  # cached
     dem, dem_cpu = timed(run_dem_silo, out=work / f"dem_{n}", **common)
     hyb, hyb_cpu = timed(run_dem_silo, out=work / f"hybrid_{n}", hybrid_vars={"hcell": hcell}, **common)
-    dem_rows = thermo_rows(work / f"dem_{n}" / "log.lammps", require="v_ng")
-    c_g = dem.loop_time / steps_weighted(dem_rows, lambda r: r["v_ng"])
-    led = hybrid_ledger(work / f"hybrid_{n}" / "log.lammps", every=10)
-    c_p, c_x = mpm_point_cost(threads), exchange_cost()
-    model = dict(grains=c_g * led["grain_steps"], points=c_p * led["point_substeps"],
-                 exchange=c_x * led["coupled_exchanges"])
-    predicted = dem.loop_time / sum(model.values())
     row = dict(scene="silo_2d", grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=ORIFICE,
-               speedup=dem.wall_time / hyb.wall_time, loop_speedup=dem.loop_time / hyb.loop_time,
-               cpu_speedup=dem_cpu / hyb_cpu, dem_cpu_s=dem_cpu, hybrid_cpu_s=hyb_cpu,
-               predicted_speedup=predicted, error=hyb.rate / dem.rate - 1, runout_error=None,
-               continuum_share=led["share_mean"], cores=np_, lammps_ranks=np_, mpm_threads=threads,
-               dem_wall_s=dem.wall_time, hybrid_wall_s=hyb.wall_time, dem_loop_s=dem.loop_time,
-               hybrid_loop_s=hyb.loop_time, rate_dem=dem.rate, rate_hybrid=hyb.rate,
-               cost_per_grain_step_s=c_g, cost_per_point_substep_s=c_p, cost_per_coupled_grain_exchange_s=c_x,
-               model_s=model, coupling_s=led["coupling_s"], mpm_wait_s=led["mpm_wait_s"], rezone_s=led["rezone_s"],
-               points_max=led["points_max"], share_t=led["share_t"], share=led["share"], hcell=hcell)
-    print(f"silo W = {n} d: {dem.grains} grains, speedup {row['speedup']:.2f}x (model {predicted:.2f}x), rate "
-          f"{row['error']:+.1%}, continuum {row['continuum_share']:.0%}", flush=True)
+               error=hyb.rate / dem.rate - 1, runout_error=None, cores=np_, lammps_ranks=np_, mpm_threads=threads,
+               rate_dem=dem.rate, rate_hybrid=hyb.rate, hcell=hcell, **speeds(dem, hyb, dem_cpu, hyb_cpu),
+               **cost_model(dem.loop_time, work / f"dem_{n}" / "log.lammps", work / f"hybrid_{n}" / "log.lammps",
+                            threads))
+    print(f"silo W = {n} d: {dem.grains} grains, speedup {row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x)"
+          f", rate {row['error']:+.1%}, continuum {row['continuum_share']:.0%}", flush=True)
+    return row
+
+
+def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path) -> dict:
+    """The 2D column collapse, a = 2, L0 = n d: DEM and the adaptive hybrid from the same cached
+    column, to rest (the deck's criterion); error = final surface RMS over H0 (grains and points)."""
+    common = dict(aspect=ASPECT, width=n * D, d=D, np_=np_, seed=seed, timeout=4 * 3600)
+    dem, dem_cpu = timed(collapse, out=work / f"dem_c{n}", **common)
+    if dem.prepared:    # the collapse from the cached column, as the hybrid starts (dem_collapse.run_from_settled)
+        dem, dem_cpu = timed(collapse, out=work / f"dem_c{n}", **common)
+    hyb, hyb_cpu = timed(collapse, out=work / f"hybrid_c{n}", hybrid_vars={"hybrid": 2, "hcell": hcell}, **common)
+    points = load_run(work / f"hybrid_c{n}" / "frames").frame(-1)["position"]
+    surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, n * D / 20, 2 * D))
+    h0 = ASPECT * n * D
+    row = dict(scene="collapse_2d", grains=dem.grains, width_d=n, height_d=int(ASPECT * n), orifice_d=None,
+               error=surface_error(surface, np.array(dem.profile).T, h0), runout_error=hyb.runout / dem.runout - 1,
+               steps_ratio=hyb.steps / dem.steps, cores=np_, lammps_ranks=np_, mpm_threads=threads,
+               runout_dem=dem.runout, runout_hybrid=hyb.runout, hcell=hcell, **speeds(dem, hyb, dem_cpu, hyb_cpu),
+               **cost_model(dem.loop_time, work / f"dem_c{n}" / "log.lammps", work / f"hybrid_c{n}" / "log.lammps",
+                            threads))
+    print(f"collapse L0 = {n} d: {dem.grains} grains, speedup {row['speedup']:.2f}x (model "
+          f"{row['predicted_speedup']:.2f}x), surface {row['error']:.1%} of H0, runout {row['runout_error']:+.1%}, "
+          f"continuum {row['continuum_share']:.0%}", flush=True)
     return row
 
 
 def table(rows: list[dict]) -> list[str]:
-    out = ["| scene | W, H (d) | grains | continuum share (mean) | most points | DEM wall s | hybrid wall s | "
-           "speedup (wall) | speedup (CPU time) | predicted | rate error | coupling s (MPM wait, rezones) |",
-           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    out = ["| scene | W or L0, H (d) | grains | continuum share (mean) | most points | DEM wall s | hybrid wall s | "
+           "speedup (wall) | speedup (CPU time) | predicted | error | runout error | coupling s (MPM wait, rezones) |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
+        error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
+        runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
+        cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
         out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']} | {r['grains']} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
-                   f"{r['cpu_speedup']:.2f}x | "
-                   f"{r['predicted_speedup']:.2f}x | {r['error']:+.1%} | {r['coupling_s']:.1f} "
+                   f"{cpu} | {r['predicted_speedup']:.2f}x | {error} | {runout} | {r['coupling_s']:.1f} "
                    f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) |")
     return out
 
@@ -151,18 +192,23 @@ def plot(rows: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.2))
-    g = [r["grains"] for r in rows]
-    ax.plot(g, [r["speedup"] for r in rows], "o-", label="measured")
-    ax.plot(g, [r["predicted_speedup"] for r in rows], "s--", label="cost model")
-    for r in rows:
-        ax.annotate(f"rate {r['error']:+.1%}", (r["grains"], r["speedup"]), textcoords="offset points", xytext=(4, 6))
+    for scene, marker in (("silo_2d", "o"), ("collapse_2d", "^")):
+        mine = sorted((r for r in rows if r["scene"] == scene), key=lambda r: r["grains"])
+        if not mine:
+            continue
+        g = [r["grains"] for r in mine]
+        line, = ax.plot(g, [r["speedup"] for r in mine], marker + "-", label=f"{scene} measured")
+        ax.plot(g, [r["predicted_speedup"] for r in mine], marker + "--", color=line.get_color(), alpha=0.6,
+                label=f"{scene} cost model")
+        for r in mine:
+            note = f"rate {r['error']:+.1%}" if scene.startswith("silo") else f"surface {r['error']:.1%}"
+            ax.annotate(note, (r["grains"], r["speedup"]), textcoords="offset points", xytext=(4, 6), fontsize=8)
+            bx.plot(r["share_t"], r["share"], label=f"{scene}, {r['grains']} grains")
     ax.axhline(1.0, color="grey", lw=0.8)
-    ax.set(xscale="log", xlabel="grains", ylabel="DEM wall time / hybrid wall time", title="2D deep silo")
-    ax.legend()
-    for r in rows:
-        bx.plot(r["share_t"], r["share"], label=f"{r['grains']} grains")
-    bx.set(xlabel="t since the opening (s)", ylabel="continuum share of the material", ylim=(0, 1))
-    bx.legend()
+    ax.set(xscale="log", xlabel="grains", ylabel="DEM wall time / hybrid wall time")
+    ax.legend(fontsize=8)
+    bx.set(xlabel="t (s; silo: since the opening)", ylabel="continuum share of the material", ylim=(0, 1))
+    bx.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
 
@@ -171,21 +217,36 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--np", type=int, default=2, dest="np_", help="LAMMPS ranks, DEM and hybrid alike")
     ap.add_argument("--threads", type=int, default=2, help="the MPM process's OpenMP threads (for the cost model)")
-    ap.add_argument("--sizes", default="40,90,160", help="silo widths in grain diameters")
-    ap.add_argument("--tdis", type=float, default=0.4, help="discharge time after the opening, s")
+    ap.add_argument("--sizes", default="40,90,160", help="silo widths in grain diameters ('' = none)")
+    ap.add_argument("--collapse-sizes", default="50,100,200", help="collapse widths L0 in grain diameters ('' = none)")
+    ap.add_argument("--tdis", type=float, default=0.4, help="the silo's discharge time after the opening, s")
     ap.add_argument("--seed", type=int, default=12345)
     ap.add_argument("--hcell", default="0", help="the hybrid's cell, m, or 0 (the fix's, from the grains)")
+    ap.add_argument("--keep", action="store_true",
+                    help="keep the rows of other (scene, size) pairs already in the JSON (each row has its date)")
     ap.add_argument("--work", type=Path, default=REPO / "runs" / "scale_speed")
     ap.add_argument("--out", type=Path, default=RESULTS / "scale_speed.md")
     a = ap.parse_args()
-    rows = [run_size(int(n), a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work) for n in a.sizes.split(",")]
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    a.out.with_suffix(".json").write_text(json.dumps(dict(date=stamp, np=a.np_, rows=rows), indent=1))
+    sizes = [int(n) for n in a.sizes.split(",") if n]
+    rows = [run_silo(n, a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work) for n in sizes]
+    rows += [run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)
+             for n in (int(n) for n in a.collapse_sizes.split(",") if n)]
+    for r in rows:
+        r["date"] = stamp
+    path = a.out.with_suffix(".json")
+    if a.keep and path.exists():
+        new = {(r["scene"], r["width_d"]) for r in rows}
+        old = [dict(r, date=r.get("date", json.loads(path.read_text())["date"]))
+               for r in json.loads(path.read_text())["rows"] if (r["scene"], r["width_d"]) not in new]
+        rows = old + rows
+    path.write_text(json.dumps(dict(date=stamp, np=a.np_, rows=rows), indent=1))
     plot(rows, a.out.with_suffix(".png"))
     text = [f"# Hybrid against pure LAMMPS DEM as the scene grows", "",
-            f"`bench/scale_speed.py --np {a.np_} --sizes {a.sizes} --tdis {a.tdis} --hcell {a.hcell}`, {stamp}; "
-            f"{a.np_} LAMMPS rank(s) for DEM and hybrid alike, the hybrid's MPM process working while LAMMPS waits; "
-            "a 2-core machine shared with other work (wall times are noisy: compare ratios).", "",
+            f"`bench/scale_speed.py --np {a.np_} --sizes '{a.sizes}' --collapse-sizes '{a.collapse_sizes}' "
+            f"--tdis {a.tdis} --hcell {a.hcell}{' --keep' if a.keep else ''}`, {stamp} (each row's date in the JSON); "
+            f"{a.np_} LAMMPS rank(s) for DEM and hybrid alike, the hybrid's MPM process working while LAMMPS waits, "
+            "each pair side by side; a 2-core machine that may be shared (compare ratios).", "",
             *table(rows), "", "![speedup against size](scale_speed.png)", ""]
     a.out.write_text("\n".join(text))
     return 0
