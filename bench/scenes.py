@@ -13,6 +13,11 @@ issue 5, each at the reduced size its test uses, side by side in one invocation:
   (tools/dem_impact.py; hybrid: adaptive zones, a discrete cylinder under the impact):
   penetration depth.
 
+The collapse and the silo also run as the LIGGGHTS-hosted hybrid (liggghts_hybrid: the same fix
+with LIGGGHTS as the DEM host, the decks' hybrid_3d.liggghts twins), whose error is against pure
+LIGGGHTS, the same host's DEM; those two scenes' four forms are also written to
+bench/results/liggghts_host.{md,json} with the measured LAMMPS-LIGGGHTS spread beside them.
+
 Each form runs from the same initial grains (or settled bed) as the LAMMPS reference. Wall
 times are those of the scene's own stage as its driver measures them (collapse: the loop times
 after the gate opens; silo: the discharge; impact: the impact stage; plough: the whole run,
@@ -20,7 +25,8 @@ pour and settling included, for every form). Ratios are the DEM's wall time over
 this job (the machine is shared: compare ratios, not absolute times).
 
 Usage: bench/scenes.py [--np 2] [--only collapse3d,silo3d,plough,impact]
-Writes bench/results/scenes.md and .json.
+Writes bench/results/scenes.md and .json (and liggghts_host.md and .json when the collapse or
+the silo runs).
 """
 from __future__ import annotations
 
@@ -38,21 +44,23 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 RESULTS = REPO / "bench" / "results"
 SEED = 2024
+DEM_CODES = ("lammps", "liggghts", "hybrid")
+BOTH_HOSTS = DEM_CODES + ("hybrid_liggghts",)
 
 
 def collapse3d(np_: int, work: Path) -> dict:
     from dem3d_collapse import run
     runs = {code: run(code, np_=np_, seed=SEED, thickness_d=5, extra_vars={"walls": 1},
-                      out=work / f"collapse_{code}", timeout=3600) for code in ("lammps", "liggghts", "hybrid")}
-    return {code: dict(measure=r.runout, wall=r.collapse_wall) for code, r in runs.items()}
+                      out=work / f"collapse_{code}", timeout=3600) for code in BOTH_HOSTS}
+    return {code: dict(measure=r.runout, wall=r.collapse_wall, grains=r.grains) for code, r in runs.items()}
 
 
 def silo3d(np_: int, work: Path) -> dict:
     from dem3d_silo import run
     common = dict(width=0.03, height=0.04, orifice=0.012, d=0.002, np_=np_, seed=SEED, prep_code="lammps",
                   cache_dir=work / "silo_cache", tdis=1.0, fstop=0.5, timeout=3600)
-    runs = {code: run(code, out=work / f"silo_{code}", **common) for code in ("lammps", "liggghts", "hybrid")}
-    return {code: dict(measure=r.rate, wall=r.wall_time) for code, r in runs.items()}
+    runs = {code: run(code, out=work / f"silo_{code}", **common) for code in BOTH_HOSTS}
+    return {code: dict(measure=r.rate, wall=r.wall_time, grains=r.grains) for code, r in runs.items()}
 
 
 def plough(np_: int, work: Path) -> dict:
@@ -60,7 +68,7 @@ def plough(np_: int, work: Path) -> dict:
     thick = dict(bedh=0.024, thickness_d=9)
     runs = {code: run(code, 0.008, d=0.002, np_=np_, seed=SEED, out=work / f"plough_{code}", timeout=3600,
                       extra_vars={"zwall": 1} if code != "hybrid" else None, **thick)
-            for code in ("lammps", "liggghts", "hybrid")}
+            for code in DEM_CODES}
     return {code: dict(measure=r.drag, wall=r.wall_time) for code, r in runs.items()}
 
 
@@ -84,6 +92,42 @@ SCENES = {
 }
 
 
+HOST_SCENES = {"collapse3d": "collapse_3d", "silo3d": "silo_3d"}
+FORM_NAMES = {"lammps": "lammps", "liggghts": "liggghts", "hybrid": "hybrid_lammps",
+              "hybrid_liggghts": "hybrid_liggghts"}
+
+
+def liggghts_host_rows(results: dict) -> list[dict]:
+    """The rows of liggghts_host.json: one per (scene, form) of the scenes run on both hosts, the
+    error against the same host's pure DEM, the spread the measured LAMMPS-LIGGGHTS difference."""
+    rows = []
+    for name, scene in HOST_SCENES.items():
+        r = results.get(name)
+        if r is None or "hybrid_liggghts" not in r:
+            continue
+        spread = abs(r["liggghts"]["measure"] / r["lammps"]["measure"] - 1)
+        for code, form in FORM_NAMES.items():
+            rows.append(dict(scene=scene, form=form, grains=r[code].get("grains"), measure=SCENES[name][1],
+                             value=r[code]["measure"], error=r[code]["error"] if code.startswith("hybrid") else 0.0,
+                             spread=spread, wall_s=r[code]["wall"], speedup=r[code]["speedup"]))
+    return rows
+
+
+def liggghts_host_table(rows: list[dict], stamp: str, np_: int) -> str:
+    lines = [f"# The same coupling on two DEM hosts (bench/scenes.py, {stamp}, {np_} ranks)", "",
+             "Each hybrid against the same host's pure DEM, from the same initial grains; the spread is the "
+             "measured difference between pure LAMMPS and pure LIGGGHTS on the scene (the target: each hybrid "
+             "within it). Speedup: the same host's pure DEM wall time over the form's.", "",
+             "| scene | form | grains | measure | value | error vs its host's DEM | LAMMPS-LIGGGHTS spread | "
+             "within the spread | wall s | speedup |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for r in rows:
+        hybrid = r["form"].startswith("hybrid")
+        within = ("yes" if abs(r["error"]) <= r["spread"] else "no") if hybrid else ""
+        lines.append(f"| {r['scene']} | {r['form']} | {r['grains'] or ''} | {r['measure']} | {r['value']:.4g} | "
+                     f"{r['error']:+.1%} | {r['spread']:.1%} | {within} | {r['wall_s']:.0f} | {r['speedup']:.2f}x |")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--np", dest="np_", type=int, default=2)
@@ -97,25 +141,37 @@ def main(argv=None) -> int:
         for name in tqdm(names, desc="scenes", unit="scene"):
             results[name] = SCENES[name][2](args.np_, Path(tmp))
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    for r in results.values():
+        for code, form in r.items():    # each form against the same host's pure DEM
+            ref = r["liggghts" if code == "hybrid_liggghts" else "lammps"]
+            form["error"] = form["measure"] / ref["measure"] - 1
+            form["speedup"] = ref["wall"] / form["wall"]
     lines = [f"# Hybrid against pure DEM on the 3D scenes (bench/scenes.py, {stamp}, {args.np_} ranks)", "",
              "Reduced sizes (those of the tests); each form from the same initial grains; speedup = the LAMMPS "
-             "run's wall time over the run's, in this job.", "",
+             "run's wall time over the run's, in this job; the LIGGGHTS-hosted hybrid against pure LIGGGHTS "
+             "(its error and its speedup).", "",
              "| scene | measure | LAMMPS | LIGGGHTS (vs LAMMPS) | hybrid (vs LAMMPS) | LIGGGHTS speed vs LAMMPS | "
-             "hybrid speedup vs LAMMPS |", "| --- | --- | --- | --- | --- | --- | --- |"]
+             "hybrid speedup vs LAMMPS | hybrid on LIGGGHTS (vs LIGGGHTS), speedup |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     for name, r in results.items():
         label, measure, _ = SCENES[name]
-        ref = r["lammps"]
-        for code in ("liggghts", "hybrid"):
-            r[code]["error"] = r[code]["measure"] / ref["measure"] - 1
-            r[code]["speedup"] = ref["wall"] / r[code]["wall"]
+        ref, lig, hyb = r["lammps"], r["liggghts"], r["hybrid"]
+        hl = r.get("hybrid_liggghts")
+        on_liggghts = f"{hl['measure']:.4g} ({hl['error']:+.1%}), {hl['speedup']:.2f}x" if hl else "-"
         lines.append(f"| {label} | {measure} | {ref['measure']:.4g} ({ref['wall']:.0f} s) | "
-                     f"{r['liggghts']['measure']:.4g} ({r['liggghts']['error']:+.1%}) | "
-                     f"{r['hybrid']['measure']:.4g} ({r['hybrid']['error']:+.1%}) | {r['liggghts']['speedup']:.2f}x | "
-                     f"{r['hybrid']['speedup']:.2f}x |")
+                     f"{lig['measure']:.4g} ({lig['error']:+.1%}) | {hyb['measure']:.4g} ({hyb['error']:+.1%}) | "
+                     f"{lig['speedup']:.2f}x | {hyb['speedup']:.2f}x | {on_liggghts} |")
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "scenes.md").write_text("\n".join(lines) + "\n")
     (RESULTS / "scenes.json").write_text(json.dumps(dict(date=stamp, np=args.np_, scenes=results), indent=1))
     print("\n".join(lines))
+    host_rows = liggghts_host_rows(results)
+    if host_rows:
+        table = liggghts_host_table(host_rows, stamp, args.np_)
+        (RESULTS / "liggghts_host.md").write_text(table)
+        (RESULTS / "liggghts_host.json").write_text(json.dumps(dict(date=stamp, np=args.np_, rows=host_rows),
+                                                               indent=1))
+        print(table)
     return 0
 
 

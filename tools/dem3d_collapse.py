@@ -14,6 +14,7 @@ max(y + r) per x bin of 2 d over the connected deposit (hgtools.collapse.measure
 
     tools/dem3d_collapse.py --code lammps   --np 2 --out /tmp/d3_lmp
     tools/dem3d_collapse.py --code liggghts --np 2 --out /tmp/d3_lig
+    tools/dem3d_collapse.py --code hybrid_liggghts --np 2 --out /tmp/d3_hl   (LIGGGHTS-hosted hybrid)
 """
 from __future__ import annotations
 
@@ -30,7 +31,8 @@ from hgtools.collapse import Deposit, measure
 from hgtools.grains import FLOOR_SPACING, LATTICE_SPACING, jittered, pour_lattice, read_dump, slab_floor, write_spheres
 from hgtools.runner import CODES, Forms, workdir
 
-FORMS = Forms("column_collapse")
+FORMS = Forms("column_collapse", hybrid_liggghts="hybrid_3d.liggghts")
+HYBRIDS = ("hybrid", "hybrid_liggghts")
 
 
 def domain_length(aspect: float, width: float, d: float) -> float:
@@ -91,7 +93,9 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     """Writes the data file, runs `code`'s deck and analyses its dumps.
     thickness_d: slab thickness W in floor rows (W = thickness_d * 1.2 d).
     code "hybrid": dem_3d.lmp with its hybrid twin (hybrid_3d.lmp, side walls: walls 1) through
-    tools/hybrid_launch.py; the result holds the grains, the points are in <out>/frames."""
+    tools/hybrid_launch.py; "hybrid_liggghts": liggghts_3d.in with hybrid_3d.liggghts, LIGGGHTS as
+    the DEM host (hybrid_launch.py --host liggghts); the result holds the grains, the points are
+    in <out>/frames."""
     out = workdir(out, f"dem3d_{code}", ("final.dump", "initial.dump"))
     geo = write_data(out / "grains.data", aspect, width, d, thickness_d, seed)
     variables = dict(data=out / "grains.data", out=out, aspect=aspect, width=width, d=d,
@@ -99,10 +103,10 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     done = FORMS.run(code, variables, out / "log.txt", {"walls": 1, **(extra_vars or {})}, np_=np_, exe=exe,
                      timeout=timeout)
     log = done.check("in the collapse", out / "final.dump")
-    walls = code == "hybrid" or int(variables.get("walls", 0)) == 1
+    walls = code in HYBRIDS or int(variables.get("walls", 0)) == 1
     res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d,
                   None if walls else geo["thickness"])
-    if code == "hybrid":    # the continuum's surface too (its points are in the frames)
+    if code in HYBRIDS:    # the continuum's surface too (its points are in the frames)
         from column_collapse import combine_surfaces, points_surface
         from mpm_results import load_run
         points = load_run(out / "frames").frame(-1)["position"][:, :2]

@@ -25,6 +25,7 @@
 #include "output.h"
 #include "pair_gran.h"
 #include "region.h"
+#include "thermo.h"
 #include "universe.h"
 #include "update.h"
 
@@ -79,6 +80,17 @@ struct OutputRestartAccess {
 RestartFlagMember output_restart_flag();
 NextRestartMember output_next_restart();
 template struct OutputRestartAccess<&Output::restart_flag, &Output::next_restart>;
+
+// LIGGGHTS 3.8's thermo calls atoms lost whenever their count fell since its last output
+// (Thermo::last_natoms, private), so a rezone that turns grains into points would stop a deck
+// with `thermo_modify lost error`: the fix tells it the count it changed itself, the same way
+using LastNatomsMember = bigint Thermo::*;
+template <LastNatomsMember Member>
+struct ThermoLastNatomsAccess {
+  friend LastNatomsMember thermo_last_natoms() { return Member; }
+};
+LastNatomsMember thermo_last_natoms();
+template struct ThermoLastNatomsAccess<&Thermo::last_natoms>;
 
 coupler::GridGeometry<3> box_grid(const Domain *domain, double cell)
 {
@@ -666,6 +678,8 @@ void FixHybridMPMLiggghts::rezone(int source)
                                  update->ntimestep, "LIGGGHTS", "LIGGGHTS's atom IDs are 32-bit");
   if (!too_many.empty()) fail(too_many);
   atom->natoms += counts.made - counts.deleted;
+  if (output != nullptr && output->thermo != nullptr)    // not lost: made and deleted by the fix
+    output->thermo->*thermo_last_natoms() += counts.made - counts.deleted;
   if (counts.made > 0 && atom->tag_enable) atom->tag_extend();
   if (atom->map_style) {
     atom->map_init();
