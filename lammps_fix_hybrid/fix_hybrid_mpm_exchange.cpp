@@ -16,10 +16,10 @@
 #include "update.h"
 #include "utils.h"
 
-#include "coupler/coupling_timer.hpp"
 #include "coupler/dem_coupling.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
+#include "coupler/dem_run_log.hpp"
 #include "coupler/dem_session.hpp"
 #include "coupler/fix_options.hpp"
 #include "coupler/zones.hpp"
@@ -120,8 +120,7 @@ void FixHybridMPM::exchange(bool force_output)
   h.next_time = next_exchange_time(force_output);
   coupler::StepAck ack;
   coupler::ExchangeTally tally;
-  // the session's round trip is the wait for the MPM process, less the grains' updates and the
-  // output frame it calls back for
+  // the session's round trip is the wait for the MPM process (coupler::DemRunLog::charge_exchange)
   const double sent = MPI_Wtime();
   const coupler::StepOutcome outcome =
       coupler::exchange_grains<D>(*session, world, transfer<D>(), g, index, h, opt->continuum.pic, support, supported,
@@ -135,13 +134,7 @@ void FixHybridMPM::exchange(bool force_output)
   *last_ack = ack;
   exchanges++;
   link->count_exchange();
-  const double end = MPI_Wtime();
-  charge(coupler::kTimeMpmWait, replied - sent - tally.applying - tally.framing);
-  charge(coupler::kTimeApply, tally.applying);
-  charge(coupler::kTimeOutput, tally.framing);
-  charge(coupler::kTimeExchange, (end - start) - (replied - sent));
-  run_timing->exchanges++;
-  all_timing->exchanges++;
+  run_log->charge_exchange(start, sent, replied, MPI_Wtime(), tally.applying, tally.framing);
 }
 
 /* ----------------------------------------------------------------------
