@@ -63,7 +63,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), exchanges(0), restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr),
     support(nullptr), converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle),
     new_grain_mask(1), polydispersity(0.0), timestep_checked(false), fewest_steps_warned(coupler::kBig),
-    restored(false), state_loaded(false), clock_time(0.0), clock_step(-1), clock_dt(0.0), stress_id(nullptr),
+    restored(false), state_loaded(false), clock(new coupler::CouplingClock), stress_id(nullptr),
     last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger(new coupler::EnergyLedger),
     ledger_started(false), continuum_start(0.0), run_log(new coupler::DemRunLog)
 {
@@ -249,14 +249,7 @@ void FixHybridMPM::setup(int /*vflag*/)
   // the coupling's clock: LAMMPS's own time at the first run, kept by the fix from then on
   // (this LAMMPS does not restore the simulated time from restart files); re-anchored when
   // the time step changes between runs
-  if (clock_step < 0) {
-    clock_time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
-    clock_step = update->ntimestep;
-  } else if (clock_dt != update->dt) {
-    clock_time = dem_time();
-    clock_step = update->ntimestep;
-  }
-  clock_dt = update->dt;
+  clock->start_run(update->ntimestep, update->atime, update->atimestep, update->dt);
   // this run's timing breakdown starts here (LAMMPS's own setup is done; the handshake of the
   // first run is not counted)
   run_log->start_run(update->ntimestep + 1);

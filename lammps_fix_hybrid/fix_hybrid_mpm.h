@@ -48,6 +48,7 @@ struct EnergyLedger;
 struct OracleSettings;
 struct FixOptions;
 struct RezoneReport;
+struct CouplingClock;
 class DemRunLog;
 }
 
@@ -125,9 +126,7 @@ class FixHybridMPM : public Fix {
   double fewest_steps_warned;             // steps per contact at the last warning
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
-  double clock_time;                      // DEM time at clock_step (the coupling's clock)
-  bigint clock_step;                      // -1 until the first setup
-  double clock_dt;
+  std::unique_ptr<coupler::CouplingClock> clock;    // the coupling's clock (coupler/dem_coupling.hpp)
   // per-atom stress*volume (xx yy zz xy xz yz) stored for the next rezone: a per-atom array
   // LAMMPS carries with the atoms (sorting, exchange, other fixes' deletions) like weight
   double **atom_stress = nullptr;

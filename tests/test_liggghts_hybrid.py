@@ -17,7 +17,7 @@ import pytest
 from conftest import REPO
 from hgtools.logs import thermo_tables
 from test_coupled_physics import liggghts_headers
-from test_coupled_launch import LAUNCH, STOP_WITHIN, env, material_file, output
+from test_coupled_launch import LAUNCH, STOP_WITHIN, TIMING_SECTIONS, env, material_file, output, timing_blocks
 
 DECK = REPO / "input_decks" / "hybrid" / "momentum_3d.liggghts"
 
@@ -231,3 +231,75 @@ def test_liggghts_material_applies_to_its_linear_spring_dashpot_only(tmp_path, l
                   r"friction angle (\S+) deg, mu_s ([0-9.e+-]+)", text)
     assert m, text
     assert [float(g) for g in m.groups()[1:]] == [0.2, 17.46, 0.3]
+
+
+ADAPTIVE_DECK = REPO / "input_decks" / "hybrid" / "adaptive_3d.liggghts"
+RUN_SUMMARY = re.compile(r"^fix hybrid/mpm: (steps|run of steps) (\d+)-(\d+): (\d+) rezones?: ", re.M)
+
+
+def test_liggghts_timing_breakdown_rezone_summaries_and_fix_modify(tmp_path, liggghts_hybrid):
+    """The LIGGGHTS host keeps the LAMMPS host's account of a run (coupler::DemRunLog): two coupled
+    runs with adaptive zones on 2 ranks each end with the timing breakdown in LAMMPS's columns
+    (sections adding up to the coupling's total, its own timers on the last line); thermo prints
+    entries 30-33, positive, with the MPM wait and the rezones within the coupling's time and that
+    within the run's loop time; the rezone log sums the rezones at thermo output, and fix_modify
+    changes rezone_log between the runs (quiet: only the run's summary)."""
+    text = ADAPTIVE_DECK.read_text()
+    out = re.sub(r"^thermo_style .*$", "thermo_style    custom step atoms f_couple f_couple[30] f_couple[31] "
+                 "f_couple[32] f_couple[33]", text, flags=re.M)
+    assert out != text
+    out += "\nfix_modify      couple rezone_log quiet depth 0.012\nrun             40\n"
+    deck = tmp_path / "deck.in"
+    deck.write_text(out)
+    proc, _ = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "60", "-var", "rezone_log",
+                     "summary", "-log", "log.lammps", timeout=120, cwd=tmp_path)
+    assert proc.returncode == 0, output(proc)
+    log = (tmp_path / "log.lammps").read_text(errors="replace")
+    # the breakdown at the end of each run
+    blocks = timing_blocks(log)
+    assert [b["exchanges"] for b in blocks] == [12, 8], log      # every 5 steps: 60 then 40 more
+    assert blocks[0]["rezones"] >= 2 and blocks[1]["rezones"] >= 1, log    # the conversion and the oracle's
+    for b in blocks:
+        rows = b["rows"]
+        assert list(rows) == TIMING_SECTIONS, rows
+        total = rows["Coupling"]
+        assert sum(r[1] for s, r in rows.items() if s != "Coupling") == pytest.approx(total[1], rel=1e-3, abs=1e-4)
+        assert 0.0 < rows["MPM wait"][1] <= total[1] and rows["Rezone"][1] > 0.0, rows
+        # LIGGGHTS times no fixes: the coupling is part of its Other (the loop less its timed sections)
+        m = re.match(r"DEM side \(LIGGGHTS timer, avg\): Pair (\S+) Neigh (\S+) Comm (\S+) Other (\S+) s; "
+                     r"coupling (\S+) s of (\S+) s wall \((\S+)%, part of Other\)$", b["dem"])
+        assert m, b["dem"]
+        pair, neigh, comm, other, coupling, wall, share = (float(g) for g in m.groups())
+        assert pair > 0.0 and min(neigh, comm) >= 0.0, b["dem"]
+        assert 0.0 < coupling <= other * (1 + 1e-3) and other <= wall, b["dem"]
+        assert share == pytest.approx(total[4], abs=0.01) and 0.0 < share <= 100.0, b["dem"]
+    # thermo entries 30-33 within each run's loop time
+    loops = [float(t) for t in re.findall(r"^Loop time of (\S+) on 2 procs", log, flags=re.M)]
+    tables = thermo_tables(liggghts_headers(log, out))
+    assert len(tables) == len(loops) == 2, log
+    coupling_before = 0.0
+    for table, loop in zip(tables, loops):
+        last = table[-1]
+        coupling, wait, rezone, share = (last[f"f_couple[{k}]"] for k in (30, 31, 32, 33))
+        assert 0.0 < wait and 0.0 < rezone and wait + rezone <= coupling, last
+        assert coupling - coupling_before <= loop, (last, loop)    # entry 30 counts all runs
+        assert 0.0 < share <= 100.0, last
+        coupling_before = coupling
+    # rezone log: summaries at thermo output in the first run (summary), only the run's in the second
+    second = log.index("fix_modify      couple rezone_log quiet")
+    first_kinds = [m[1] for m in RUN_SUMMARY.finditer(log[:second])]
+    second_kinds = [m[1] for m in RUN_SUMMARY.finditer(log[second:])]
+    assert "steps" in first_kinds and first_kinds[-1] == "run of steps", log
+    assert second_kinds == ["run of steps"], log
+    # the oracle's rezones print no lines of their own at either level (only the conversion's)
+    assert len(re.findall(r"^fix hybrid/mpm: step \d+: \d+ grains became", log, flags=re.M)) == 1, log
+
+
+def test_liggghts_fix_modify_refuses_a_bad_value_naming_it(tmp_path, liggghts_hybrid):
+    deck = edited_deck(tmp_path, lambda t: t.replace("thermo          10",
+                                                     "fix_modify      couple rezone_log loud\nthermo          10"))
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "10", "-log", "none")
+    text = output(proc)
+    assert proc.returncode != 0 and elapsed < STOP_WITHIN, text
+    assert ("ERROR: Illegal fix hybrid/mpm command: keyword 'rezone_log' must be full, summary or quiet, not "
+            "'loud'") in text, text

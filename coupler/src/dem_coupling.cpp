@@ -325,6 +325,22 @@ RestartRecord RestartRecord::read(const double *in) {
   return r;
 }
 
+void RestartRecord::write_file(std::FILE *fp) const {
+  double list[kValues];
+  write(list);
+  const int size = sizeof(list);
+  std::fwrite(&size, sizeof(int), 1, fp);
+  std::fwrite(list, sizeof(double), kValues, fp);
+}
+
+std::int64_t next_exchange_step(const ExchangeOutlook &o) {
+  const std::int64_t next = o.now + o.every;
+  if (o.forced_output || o.rezone_next || o.restart_file) return -1;
+  if (next <= o.last_step) return next;
+  if (o.output_frames && o.last_step > o.now) return o.last_step;    // the end-of-run frame
+  return -1;
+}
+
 std::string RestartRecord::take_cell(double &input_cell) const {
   if (input_cell <= 0.0) input_cell = cell;
   if (cell == input_cell) return "";
