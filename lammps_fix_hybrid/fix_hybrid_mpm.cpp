@@ -107,7 +107,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
 
   // tell the MPM process at MPI_Finalize if LAMMPS stops on an error (see coupler)
   try {
-    coupler::install_dem_finalize_hook(world);
+    coupler::install_dem_finalize_hook(world, "LAMMPS");
   } catch (const std::exception &e) {
     error->all(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
   }

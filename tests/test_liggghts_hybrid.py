@@ -81,7 +81,9 @@ def test_liggghts_refuses_what_it_does_not_support_naming_it(tmp_path, liggghts_
     assert proc.returncode != 0, text
     assert "ERROR: Fix hybrid/mpm: " + message in text, text
     # the MPM process is told at once instead of waiting for its handshake timeout
-    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    # the MPM process cannot know its host before the handshake: the host's own note names it
+    assert ("mpm_solver: error: the DEM host ended before connecting: LIGGGHTS ended before fix hybrid/mpm connected "
+            "(an error in the LIGGGHTS input before the first run") in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -92,7 +94,8 @@ def test_liggghts_error_during_the_coupled_run_stops_the_mpm_process(tmp_path, l
     text = output(proc)
     assert proc.returncode != 0, text
     assert "ERROR: Unknown command: no_such_command" in text, text
-    assert "mpm_solver: error: LAMMPS stopped the coupled run after 5 exchange(s)" in text, text
+    assert ("mpm_solver: error: LIGGGHTS stopped the coupled run after 5 exchange(s): LIGGGHTS stopped on an error "
+            "during the coupled run - see the LIGGGHTS output for the ERROR line") in text, text
     assert "ranks 0-1 are LIGGGHTS (liggghts_hybrid), rank 2 is mpm_solver" in text, text
     assert elapsed < STOP_WITHIN
 
@@ -140,11 +143,12 @@ def test_liggghts_time_step_is_checked_against_its_contact_model(tmp_path, liggg
     assert says in text, text
     assert (proc.returncode != 0) == says.startswith("ERROR"), text
     if proc.returncode != 0:
-        assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+        assert "mpm_solver: error: the DEM host ended before connecting" in text, text
         assert elapsed < STOP_WITHIN
     else:
         assert "fix hybrid/mpm: finished the coupled run after 10 exchange(s)" in text, text
         assert "handshake ok with LIGGGHTS 3.8.0" in text, text    # the MPM process names its host
+        assert "mpm_solver: coupled run finished at LIGGGHTS step 10 after 10 exchange(s)" in text, text
 
 
 def test_liggghts_restart_continues_the_coupled_run(tmp_path, liggghts_hybrid):
@@ -198,7 +202,7 @@ def test_liggghts_gravity_changed_between_runs_is_refused(tmp_path, liggghts_hyb
     assert proc.returncode != 0, text
     assert ("ERROR: Fix hybrid/mpm: gravity changed since the coupled run started: (0, 0, 0) m/s^2 then, "
             "(0, -5, 0) now") in text, text
-    assert "mpm_solver: error: LAMMPS stopped the coupled run after 2 exchange(s)" in text, text
+    assert "mpm_solver: error: LIGGGHTS stopped the coupled run after 2 exchange(s)" in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -303,3 +307,4 @@ def test_liggghts_fix_modify_refuses_a_bad_value_naming_it(tmp_path, liggghts_hy
     assert proc.returncode != 0 and elapsed < STOP_WITHIN, text
     assert ("ERROR: Illegal fix hybrid/mpm command: keyword 'rezone_log' must be full, summary or quiet, not "
             "'loud'") in text, text
+

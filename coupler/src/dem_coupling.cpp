@@ -393,14 +393,14 @@ std::string material_line(const FixOptions &options) {
          ", critical packing " + general(c.critical_packing, 4);
 }
 
-MPI_Comm start_dem_job(int *argc, char ***argv, const char *program) {
+MPI_Comm start_dem_job(int *argc, char ***argv, const char *program, const std::string &host) {
   MPI_Init(argc, argv);
   int me = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &me);
   MPI_Comm dem_comm = MPI_COMM_NULL;
   MPI_Comm_split(MPI_COMM_WORLD, kDemColor, me, &dem_comm);
   try {
-    install_dem_finalize_hook(dem_comm);
+    install_dem_finalize_hook(dem_comm, host);
   } catch (const std::exception &e) {
     std::fprintf(stderr, "%s: ERROR: %s\n", program, e.what());
     MPI_Abort(MPI_COMM_WORLD, 1);

@@ -240,3 +240,13 @@ TEST(DemCoupling, RestartRecordFileIsItsSizeThenItsValues) {
   EXPECT_DOUBLE_EQ(back.time, 0.25);
   EXPECT_EQ(back.step, 35);
 }
+
+TEST(DemCoupling, MpmProcessNamesItsHostFromTheHandshake) {
+  EXPECT_EQ(coupler::dem_host_name("LAMMPS 29 Sep 2021"), "LAMMPS");
+  EXPECT_EQ(coupler::dem_host_name("LIGGGHTS 3.8.0"), "LIGGGHTS");
+  EXPECT_EQ(coupler::dem_host_name("LIGGGHTS"), "LIGGGHTS");
+  // a peer that names no known host (the fault campaign's stand-in), or nothing
+  EXPECT_EQ(coupler::dem_host_name("hostile_peer.py (mpi4py)"), coupler::kUnknownDemHost);
+  EXPECT_EQ(coupler::dem_host_name("LAMMPSX 1"), coupler::kUnknownDemHost);
+  EXPECT_EQ(coupler::dem_host_name(""), "the DEM host");
+}

@@ -113,7 +113,7 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
 
   // tell the MPM process at MPI_Finalize if LIGGGHTS stops on an error (see coupler)
   try {
-    coupler::install_dem_finalize_hook(world);
+    coupler::install_dem_finalize_hook(world, "LIGGGHTS");
   } catch (const std::exception &e) {
     fail(e.what());
   }

@@ -234,8 +234,9 @@ std::string material_line(const FixOptions &options);
 /// MPI_COMM_WORLD split by colour (kDemColor; mpm_solver takes kMpmColor, so the host never
 /// sees the MPM ranks; run alone the split is a no-op), the MPI_Finalize hook installed with
 /// the end-of-job barrier left to it (the hosts' Error::all ends in MPI_Finalize + exit(1)).
-/// Returns the DEM ranks' communicator; aborts the job naming `program` on a failure.
-MPI_Comm start_dem_job(int *argc, char ***argv, const char *program);
+/// Returns the DEM ranks' communicator; aborts the job naming `program` on a failure. `host`
+/// names the DEM host to the MPM process ("LAMMPS", "LIGGGHTS").
+MPI_Comm start_dem_job(int *argc, char ***argv, const char *program, const std::string &host);
 /// Its normal end: the MPM process is told if no fix ever connected (`unconnected`: why), then
 /// the end-of-job barrier (coupler/protocol.hpp) and MPI_Finalize.
 void end_dem_job(MPI_Comm dem_comm, const std::string &unconnected);
