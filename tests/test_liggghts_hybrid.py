@@ -308,3 +308,62 @@ def test_liggghts_fix_modify_refuses_a_bad_value_naming_it(tmp_path, liggghts_hy
     assert ("ERROR: Illegal fix hybrid/mpm command: keyword 'rezone_log' must be full, summary or quiet, not "
             "'loud'") in text, text
 
+
+def plate_stl(path: Path, z: float, lo: float = 0.001, hi: float = 0.159) -> Path:
+    """An ASCII STL of a square plate at height z: two triangles."""
+    tri = [((lo, lo, z), (hi, lo, z), (hi, hi, z)), ((lo, lo, z), (hi, hi, z), (lo, hi, z))]
+    facets = "".join("facet normal 0 0 1\nouter loop\n" + "".join(f"vertex {x} {y} {zz}\n" for x, y, zz in t) +
+                     "endloop\nendfacet\n" for t in tri)
+    path.write_text(f"solid plate\n{facets}endsolid plate\n")
+    return path
+
+
+def with_mesh_wall(stl: Path):
+    """The deck with a mesh wall (fix mesh/surface + fix wall/gran ... mesh) before the coupling."""
+    def edit(text: str) -> str:
+        return sub(r"^(fix\s+couple\s)", f"fix             plate all mesh/surface file {stl} type 1\n"
+                   "fix             wall all wall/gran model hooke/stiffness tangential history mesh n_meshes 1 "
+                   "meshes plate\n" + r"\1")(text)
+    return edit
+
+
+def test_liggghts_mesh_wall_is_a_boundary_of_the_zone_oracle(tmp_path, liggghts_hybrid):
+    """A mesh wall through the middle of the adaptive 3D patch (a plate at z = 0.084, between two
+    layers of grains that just touch it): the fix finds its triangles and the grid cells they pass
+    through (one layer of 16 x 16 cells of 0.01 m), and the oracle keeps them discrete like the
+    cells of discrete regions: the continuum is smaller than without the wall, with the same grains.
+    (Without the fix knowing the wall, the dense grains on both sides of it would be continuum.)"""
+    stl = plate_stl(tmp_path / "plate.stl", 0.084)
+    base = ADAPTIVE_DECK.read_text()
+    continuum = {}
+    for name, text in (("without", base), ("with", with_mesh_wall(stl)(base))):
+        d = tmp_path / name
+        d.mkdir()
+        (d / "deck.in").write_text(text)
+        proc, _ = launch("--host", "liggghts", "-np", "2", "deck.in", "-var", "nsteps", "10", "-var", "rezone_log",
+                         "full", "-log", "log.lammps", timeout=120, cwd=d)
+        assert proc.returncode == 0, output(proc)
+        log = (d / "log.lammps").read_text(errors="replace")
+        said = re.findall(r"^fix hybrid/mpm: mesh walls \(fix mesh/surface (\S+)\): (\d+) triangles on (\d+) grid cells, "
+                          r"kept discrete", log, flags=re.M)
+        assert said == ([("plate", "2", "256")] if name == "with" else []), log
+        # the conversion at step 1 is the oracle's first map (no continuum regions)
+        first = re.search(r"^fix hybrid/mpm: step 1: .* grid cells in the box: (\d+) continuum, (\d+) hybrid", log,
+                          flags=re.M)
+        assert first, log
+        continuum[name] = int(first.group(1))
+    assert continuum["without"] > 0, continuum
+    assert continuum["with"] < continuum["without"], continuum
+
+
+def test_liggghts_mesh_wall_inside_continuum_regions_is_refused(tmp_path, liggghts_hybrid):
+    """Fixed continuum regions cannot leave a mesh wall's grains discrete: a plate through the
+    momentum deck's continuum core is an error naming the problem and both ways out."""
+    deck = edited_deck(tmp_path, with_mesh_wall(plate_stl(tmp_path / "plate.stl", 0.0501, hi=0.099)))
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "10", "-log", "none",
+                           cwd=tmp_path)
+    text = output(proc)
+    assert proc.returncode != 0 and elapsed < STOP_WITHIN, text
+    assert re.search(r"ERROR: Fix hybrid/mpm: the continuum regions make \d+ grid cells that a mesh wall \(fix "
+                     r"mesh/surface\) passes through continuum or hybrid", text), text
+    assert "mpm_solver: error: LIGGGHTS stopped the coupled run" in text, text

@@ -102,6 +102,8 @@ class FixHybridMPMLiggghts : public Fix {
   void schedule_rezone(int source);
   class Compute *stress_compute() const;    // that compute; an error if it was deleted
   std::vector<std::uint64_t> discrete_cells() const;
+  std::vector<std::uint64_t> mesh_wall_cells();    // cells the mesh walls pass through now (collective)
+  bool mesh_walls_logged = false;
   void rezone(int source);
   bool make_grain(const coupler::PlannedGrain<3> &planned);
   void exchange(bool force_output);

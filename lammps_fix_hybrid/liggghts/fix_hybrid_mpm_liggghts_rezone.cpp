@@ -1,17 +1,19 @@
 /* ----------------------------------------------------------------------
    fix hybrid/mpm for LIGGGHTS 3.8 (hybrid-granular project): zones
-   (continuum regions, discrete regions) and rezones: the host's side of
+   (continuum regions, discrete regions, mesh walls) and rezones: the host's side of
    coupler/dem_rezone.hpp (creating and deleting atoms as LIGGGHTS's
    particle insertion does)
 ------------------------------------------------------------------------- */
 
 #include "fix_hybrid_mpm_liggghts_impl.h"
 
+#include "abstract_mesh.h"
 #include "atom.h"
 #include "atom_vec.h"
 #include "comm.h"
 #include "compute.h"
 #include "error.h"
+#include "fix_mesh.h"
 #include "modify.h"
 #include "region.h"
 #include "update.h"
@@ -30,6 +32,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 using namespace LAMMPS_NS;
 using namespace FixConst;
@@ -124,6 +127,41 @@ std::vector<std::uint64_t> FixHybridMPMLiggghts::discrete_cells() const
   return cells;
 }
 
+// LIGGGHTS's mesh walls (fix mesh/surface, the meshes of fix wall/gran ... mesh): the grid cells their
+// triangles pass through now (meshes may move), from the triangles every rank owns (collective);
+// logged at the first call
+std::vector<std::uint64_t> FixHybridMPMLiggghts::mesh_wall_cells()
+{
+  std::vector<double> mine;
+  std::string ids;
+  for (int f = 0; f < modify->nfix; f++) {
+    if (std::strncmp(modify->fix[f]->style, "mesh/surface", 12) != 0) continue;
+    ids += std::string(ids.empty() ? "" : " ") + modify->fix[f]->id;
+    AbstractMesh *mesh = static_cast<FixMesh *>(modify->fix[f])->mesh();
+    if (!mesh || mesh->numNodes() != 3) continue;
+    double node[3];
+    for (int e = 0; e < mesh->sizeLocal(); e++)
+      for (int k = 0; k < 3; k++) {
+        mesh->node_slow(e, k, node);
+        mine.insert(mine.end(), node, node + 3);
+      }
+  }
+  if (ids.empty()) return {};
+  const int n = static_cast<int>(mine.size());
+  std::vector<int> counts(comm->nprocs), offsets(comm->nprocs, 0);
+  MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, world);
+  for (int r = 1; r < comm->nprocs; r++) offsets[r] = offsets[r - 1] + counts[r - 1];
+  std::vector<double> all(static_cast<std::size_t>(offsets.back() + counts.back()));
+  MPI_Allgatherv(mine.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, world);
+  std::vector<std::uint64_t> cells = coupler::cells_of_triangles(transfer->grid(), all);
+  if (!mesh_walls_logged)
+    say("fix hybrid/mpm: mesh walls (fix mesh/surface " + ids + "): " + std::to_string(all.size() / 9) +
+        " triangles on " + std::to_string(cells.size()) +
+        " grid cells, kept discrete (boundaries of the zone oracle, as the cells of discrete regions)");
+  mesh_walls_logged = true;
+  return cells;
+}
+
 void FixHybridMPMLiggghts::pre_exchange()
 {
   if (!rezone_pending || update->ntimestep != next_reneighbor) return;
@@ -187,7 +225,26 @@ void FixHybridMPMLiggghts::rezone(int source)
   atoms.remove = [&](const std::vector<char> &flags) {
     atom->nlocal = coupler::delete_flagged(flags, atom->nlocal, [&](int from, int to) { atom->avec->copy(from, to, 1); });
   };
-  atoms.discrete_cells = [&] { return discrete_cells(); };
+  // the oracle's boundaries: the discrete regions and the mesh walls (their cells gathered here:
+  // the session asks for them on rank 0 only)
+  const std::vector<std::uint64_t> mesh_cells = mesh_wall_cells();
+  if (source == coupler::kZonesGiven) {
+    // the continuum regions' own map: it must leave the grains next to a mesh wall discrete
+    std::int64_t covered = 0;
+    for (std::uint64_t c : mesh_cells) covered += zones[c] != coupler::kDiscrete;
+    if (covered > 0)
+      fail("the continuum regions make " + std::to_string(covered) + " grid cells that a mesh wall (fix " +
+           "mesh/surface) passes through continuum or hybrid, but grains next to a mesh wall must stay discrete: "
+           "make the continuum regions clear of the mesh walls by at least hybrid_width + 1 cells, or use adaptive "
+           "zones (keyword adaptive), whose oracle keeps the mesh walls' cells discrete");
+  }
+  atoms.discrete_cells = [&] {
+    std::vector<std::uint64_t> cells = discrete_cells();
+    cells.insert(cells.end(), mesh_cells.begin(), mesh_cells.end());
+    std::sort(cells.begin(), cells.end());
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    return cells;
+  };
   coupler::StepAck ack;
   coupler::RezoneCounts counts;
   const coupler::StepOutcome outcome = coupler::rezone_grains<3>(*session, world, plan, zones, atoms, support, ack, counts);
