@@ -367,3 +367,45 @@ def test_liggghts_mesh_wall_inside_continuum_regions_is_refused(tmp_path, ligggh
     assert re.search(r"ERROR: Fix hybrid/mpm: the continuum regions make \d+ grid cells that a mesh wall \(fix "
                      r"mesh/surface\) passes through continuum or hybrid", text), text
     assert "mpm_solver: error: LIGGGHTS stopped the coupled run" in text, text
+
+
+INSERTION = """fix             pts all particletemplate/sphere 15485867 atom_type 1 density constant 2500 radius constant 0.002
+fix             pdd all particledistribution/discrete 32452843 1 pts 1.0
+region          ins block 0.084 0.098 0.02 0.08 0.02 0.08 units box
+fix             ins {group} insert/pack seed 49979687 distributiontemplate pdd insert_every once overlapcheck yes &
+                all_in yes particles_in_region 20 region ins
+"""
+
+
+@pytest.mark.parametrize("coupled, inserted", [("all", "all"), ("grains", "grains"), ("grains", "all")])
+def test_liggghts_inserted_particles_join_the_coupled_group(tmp_path, liggghts_hybrid, coupled, inserted):
+    """Particles fix insert/pack makes during a coupled run (20 spheres of 4 mm beside the
+    momentum deck's cube, at rest, at the start of a second run) get the fix's per-atom data (weight 1, no support force) and
+    join the coupling when the insertion fix's group is the coupled one: the total mass of grains
+    plus points (f_couple[8]) grows by exactly their mass and the total momentum does not change.
+    Inserted into another group they stay outside the coupling, and the fix says so."""
+    def edit(text: str) -> str:
+        if coupled != "all":
+            text = sub(r"^(fix\s+couple) all ", rf"\1 {coupled} ")(text)
+        text = sub(r"^(region\s+core .*)$", r"\1\ngroup           grains region patch")(text)
+        # a first run converts the core; the insertion fix, defined after it, inserts at the next run's start
+        return sub(r"^run\s+\$\{nsteps\}$", "run 10\n" + INSERTION.format(group=inserted) + "run 20")(text)
+    deck = edited_deck(tmp_path, edit)
+    proc, _ = launch("--host", "liggghts", "-np", "2", str(deck), "-log", "log.lammps", cwd=tmp_path)
+    text = output(proc)
+    assert proc.returncode == 0, text
+    log = liggghts_headers((tmp_path / "log.lammps").read_text(errors="replace"), deck.read_text())
+    first, last = thermo_tables(log)[0][-1], thermo_tables(log)[-1][-1]
+    assert (first["Step"], last["Step"]) == (10, 30)
+    assert last["Atoms"] == first["Atoms"] + 20, (first, last)    # inserted at step 11
+    warned = ("WARNING: Fix hybrid/mpm: fix insert/pack ins inserts particles into group all, not into the coupled "
+              "group grains: they will not be coupled nor counted in the fix's totals; give the insertion fix the "
+              "group grains to couple them")
+    joined = coupled == inserted or coupled == "all"
+    assert (warned in text) != joined, text
+    grain_mass = 2500 * 4 / 3 * math.pi * 0.002 ** 3
+    added = 20 * grain_mass if joined else 0.0
+    assert last["f_couple[8]"] == pytest.approx(first["f_couple[8]"] + added, rel=1e-12), (first, last)
+    scale = first["f_couple[8]"] * 0.05
+    for col in ("f_couple[9]", "f_couple[10]", "f_couple[11]"):
+        assert abs(last[col] - first[col]) <= 1e-13 * scale, (col, first[col], last[col])

@@ -15,6 +15,7 @@
 #include "comm.h"
 #include "compute.h"
 #include "error.h"
+#include "group.h"
 #include "memory.h"
 #include "modify.h"
 #include "output.h"
@@ -35,6 +36,7 @@
 #include "coupler/version.hpp"
 #include "coupler/zones.hpp"
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
@@ -179,6 +181,7 @@ void FixHybridMPMLiggghts::init()
   if (update->whichflag == 1 && std::strcmp(update->integrate_style, "verlet") != 0)
     fail("needs run_style verlet");
   check_pair_style();
+  check_insertions();
   // the deck's step, before the coupling has changed any grain, is refused only where velocity
   // Verlet cannot integrate the stiffest contact; later runs are checked as the rezones are
   if (!converted) {
@@ -187,6 +190,26 @@ void FixHybridMPMLiggghts::init()
       fail("the time step " + coupler::general(update->dt, 6) + " s is unstable (checked before the run): " + why);
   }
   check_dem_timestep("at the start of the run");
+}
+
+// LIGGGHTS's particle insertion (fix insert/pack, insert/stream, insert/rate/region) gives a new
+// particle the groups all and its own fix's, then calls set_arrays of this fix (weight 1, no
+// support): the particles join the coupling if that group is the coupled one. Otherwise they stay
+// outside it (uncoupled, not in the totals), which the user is told once per insertion fix.
+void FixHybridMPMLiggghts::check_insertions()
+{
+  for (int f = 0; f < modify->nfix; f++) {
+    const Fix *ins = modify->fix[f];
+    if (std::strncmp(ins->style, "insert/", 7) != 0 || ((1 | ins->groupbit) & groupbit)) continue;
+    if (std::find(insertions_warned.begin(), insertions_warned.end(), ins->id) != insertions_warned.end()) continue;
+    insertions_warned.push_back(ins->id);
+    if (comm->me == 0)
+      error->warning(FLERR, kept(std::string("Fix hybrid/mpm: fix ") + ins->style + " " + ins->id +
+                                 " inserts particles into group " + group->names[ins->igroup] +
+                                 ", not into the coupled group " + group->names[igroup] +
+                                 ": they will not be coupled nor counted in the fix's totals; give the insertion "
+                                 "fix the group " + group->names[igroup] + " to couple them"));
+  }
 }
 
 /* ---------------------------------------------------------------------- */

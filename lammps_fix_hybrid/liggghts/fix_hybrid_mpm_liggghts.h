@@ -104,6 +104,8 @@ class FixHybridMPMLiggghts : public Fix {
   std::vector<std::uint64_t> discrete_cells() const;
   std::vector<std::uint64_t> mesh_wall_cells();    // cells the mesh walls pass through now (collective)
   bool mesh_walls_logged = false;
+  std::vector<std::string> insertions_warned;    // fix insert/* whose particles this fix does not couple
+  void check_insertions();
   void rezone(int source);
   bool make_grain(const coupler::PlannedGrain<3> &planned);
   void exchange(bool force_output);
