@@ -307,7 +307,7 @@ void FixHybridMPM::end_of_step()
   else exchange<3>(false);
   // the zone oracle right after this exchange (the MPM process did not advance past it),
   // unless the run ends here: the next run's setup reorders the atoms
-  if (opt->adapt_every > 0 && converted && step % opt->adapt_every == 0 && step < update->laststep)
+  if (opt->oracle_after(step, update->laststep, converted))
     schedule_rezone(coupler::kZonesOracle);
 }
 

@@ -42,7 +42,7 @@ double FixHybridMPM::next_exchange_time(bool force_output) const
   coupler::ExchangeOutlook o;
   o.now = update->ntimestep, o.last_step = update->laststep, o.every = opt->every;
   o.forced_output = force_output;
-  o.rezone_next = opt->adaptive() && converted && o.now % opt->adapt_every == 0 && o.now < update->laststep;
+  o.rezone_next = opt->oracle_after(o.now, update->laststep, converted);
   o.restart_file = output->restart_flag && output->next_restart >= o.now && output->next_restart < o.now + opt->every;
   o.output_frames = opt->continuum.output_every > 0;
   const bigint next = coupler::next_exchange_step(o);

@@ -319,7 +319,7 @@ void FixHybridMPMLiggghts::end_of_step()
   exchange(false);
   // the zone oracle right after this exchange (the MPM process did not advance past it), unless
   // the run ends here: the next run's setup reorders the atoms
-  if (opt->adaptive() && converted && step % opt->adapt_every == 0 && step < update->laststep)
+  if (opt->oracle_after(step, update->laststep, converted))
     schedule_rezone(coupler::kZonesOracle);
 }
 

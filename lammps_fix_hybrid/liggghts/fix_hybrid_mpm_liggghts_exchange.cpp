@@ -70,7 +70,7 @@ double FixHybridMPMLiggghts::next_exchange_time(bool force_output) const
   coupler::ExchangeOutlook o;
   o.now = update->ntimestep, o.last_step = update->laststep, o.every = opt->every;
   o.forced_output = force_output;
-  o.rezone_next = opt->adaptive() && converted && o.now % opt->adapt_every == 0 && o.now < update->laststep;
+  o.rezone_next = opt->oracle_after(o.now, update->laststep, converted);
   const bigint restart_step = output->*output_next_restart();
   o.restart_file = output->*output_restart_flag() && restart_step >= o.now && restart_step < o.now + opt->every;
   o.output_frames = opt->continuum.output_every > 0;
