@@ -30,10 +30,11 @@
 #include "utils.h"
 #include "version.h"
 
-#include "coupler/coupling_timer.hpp"
 #include "coupler/dem_coupling.hpp"
 #include "coupler/dem_ledger.hpp"
+#include "coupler/dem_run_log.hpp"
 #include "coupler/dem_session.hpp"
+#include "coupler/dem_timestep.hpp"
 #include "coupler/fix_options.hpp"
 #include "coupler/rezone_log.hpp"
 #include "coupler/tuning.hpp"
@@ -61,12 +62,10 @@ Fix *FixHybridMPM::creator(LAMMPS *lmp, int narg, char **arg)
 FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), exchanges(0), restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr),
     support(nullptr), converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle),
-    new_grain_mask(1), polydispersity(0.0), interval_rezones(new coupler::RezoneTally),
-    run_rezones(new coupler::RezoneTally), timestep_checked(false), fewest_steps_warned(BIG), restored(false),
-    state_loaded(false), clock_time(0.0), clock_step(-1), clock_dt(0.0), stress_id(nullptr),
+    new_grain_mask(1), polydispersity(0.0), timestep_checked(false), fewest_steps_warned(coupler::kBig),
+    restored(false), state_loaded(false), clock(new coupler::CouplingClock), stress_id(nullptr),
     last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger(new coupler::EnergyLedger),
-    ledger_started(false), continuum_start(0.0), run_timing(new coupler::CouplingTimer),
-    all_timing(new coupler::CouplingTimer), run_start_wall(0.0)
+    ledger_started(false), continuum_start(0.0), run_log(new coupler::DemRunLog)
 {
   static_assert(sizeof(vector_cache) / sizeof(vector_cache[0]) == coupler::kVecSize, "f_ID[] entries");
   // fix ID group hybrid/mpm keyword value ...: the options (coupler/fix_options.hpp)
@@ -108,7 +107,7 @@ FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
 
   // tell the MPM process at MPI_Finalize if LAMMPS stops on an error (see coupler)
   try {
-    coupler::install_dem_finalize_hook(world);
+    coupler::install_dem_finalize_hook(world, "LAMMPS");
   } catch (const std::exception &e) {
     error->all(FLERR, fmt::format("Fix hybrid/mpm: {}", e.what()));
   }
@@ -188,23 +187,8 @@ int FixHybridMPM::modify_param(int narg, char **arg)
   // fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g), and
   // fix_modify ID rezone_log full|summary|quiet: between runs
   if (narg < 2) return 0;
-  if (strcmp(arg[0], "rezone_log") == 0) {
-    set_rezone_log(arg[1]);
-    return 2;
-  }
   try {
-    if (!coupler::set_oracle_option(opt->oracle, arg[0], arg[1])) return 0;
-    coupler::check_oracle_options(*opt, domain->dimension);
-  } catch (const coupler::OptionError &e) {
-    illegal(e.what());
-  }
-  return 2;
-}
-
-void FixHybridMPM::set_rezone_log(const std::string &value)
-{
-  try {
-    opt->rezone_log = coupler::rezone_log_option(value);
+    return coupler::modify_option(*opt, arg[0], arg[1], domain->dimension) ? 2 : 0;
   } catch (const coupler::OptionError &e) {
     illegal(e.what());
   }
@@ -265,18 +249,10 @@ void FixHybridMPM::setup(int /*vflag*/)
   // the coupling's clock: LAMMPS's own time at the first run, kept by the fix from then on
   // (this LAMMPS does not restore the simulated time from restart files); re-anchored when
   // the time step changes between runs
-  if (clock_step < 0) {
-    clock_time = update->atime + (update->ntimestep - update->atimestep) * update->dt;
-    clock_step = update->ntimestep;
-  } else if (clock_dt != update->dt) {
-    clock_time = dem_time();
-    clock_step = update->ntimestep;
-  }
-  clock_dt = update->dt;
+  clock->start_run(update->ntimestep, update->atime, update->atimestep, update->dt);
   // this run's timing breakdown starts here (LAMMPS's own setup is done; the handshake of the
   // first run is not counted)
-  run_timing->clear();
-  run_start_wall = MPI_Wtime();
+  run_log->start_run(update->ntimestep + 1);
   if (!link) connect();
   else check_gravity();
   if (zones.empty()) compute_zones();
@@ -289,8 +265,6 @@ void FixHybridMPM::setup(int /*vflag*/)
   // a rezone left pending at the end of the last run is dropped (its stress is of a step
   // before the commands between the runs); the oracle runs again at its next step
   rezone_pending = false;
-  interval_rezones->restart(update->ntimestep + 1);
-  run_rezones->restart(update->ntimestep + 1);
   if (!converted && (!opt->continuum_regions.empty() || opt->adapt_every > 0))
     schedule_rezone(opt->continuum_regions.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
   if (opt->adapt_every > 0) {
@@ -318,7 +292,7 @@ void FixHybridMPM::end_of_step()
       v[i][a] += dv;
     }
   ledger->support_open += kicked;
-  charge(coupler::kTimeApply, MPI_Wtime() - kicks_start);
+  run_log->charge(coupler::kTimeApply, MPI_Wtime() - kicks_start);
   const bigint step = update->ntimestep;
   const bool oracle_next = opt->adapt_every > 0 && converted && (step + 1) % opt->adapt_every == 0;
   if (oracle_next) stress_compute()->addstep(step + 1);    // its virial
@@ -326,14 +300,14 @@ void FixHybridMPM::end_of_step()
   if (output->next_thermo == step) {
     const double log_start = MPI_Wtime();
     log_rezone_summary(false);
-    charge(coupler::kTimeOutput, MPI_Wtime() - log_start);
+    run_log->charge(coupler::kTimeOutput, MPI_Wtime() - log_start);
   }
   if (step % opt->every != 0) return;
   if (domain->dimension == 2) exchange<2>(false);
   else exchange<3>(false);
   // the zone oracle right after this exchange (the MPM process did not advance past it),
   // unless the run ends here: the next run's setup reorders the atoms
-  if (opt->adapt_every > 0 && converted && step % opt->adapt_every == 0 && step < update->laststep)
+  if (opt->oracle_after(step, update->laststep, converted))
     schedule_rezone(coupler::kZonesOracle);
 }
 
@@ -354,62 +328,27 @@ void FixHybridMPM::post_run()
 }
 
 /* ----------------------------------------------------------------------
-   wall time spent in a section of the coupling (this run's and all runs')
+   the rezones since the last thermo output (if any), or the run's
 ------------------------------------------------------------------------- */
 
-void FixHybridMPM::charge(int section, double seconds)
+void FixHybridMPM::log_rezone_summary(bool end_of_run)
 {
-  const auto s = static_cast<coupler::CouplingSection>(section);
-  run_timing->add(s, seconds);
-  all_timing->add(s, seconds);
+  const std::string line = run_log->summary(end_of_run, opt->rezone_log, update->ntimestep);
+  if (comm->me == 0 && !line.empty()) utils::logmesg(lmp, line);
 }
 
 /* ----------------------------------------------------------------------
-   the run's coupling timing breakdown, as LAMMPS's "MPI task timing
-   breakdown" (Finish): min/avg/max over the LAMMPS ranks, %total of the
-   run's wall time since this fix's setup; then LAMMPS's own Pair, Neigh,
-   Comm and Modify (the fix's time is part of Modify) for comparison
+   the run's coupling timing breakdown (coupler::DemRunLog), with LAMMPS's
+   own Pair, Neigh, Comm and Modify (the fix's time is part of Modify)
 ------------------------------------------------------------------------- */
 
 void FixHybridMPM::print_timing_breakdown()
 {
-  const double wall_local = MPI_Wtime() - run_start_wall;
-  double wall = 0.0;
-  MPI_Allreduce(&wall_local, &wall, 1, MPI_DOUBLE, MPI_SUM, world);
-  wall /= comm->nprocs;
-
-  constexpr int n = coupler::kTimeSections + 1;    // the sections and their total
-  double t[n], t_sq[n], t_min[n], t_max[n], t_sum[n], t_sq_sum[n];
-  for (int k = 0; k < coupler::kTimeSections; k++) t[k] = run_timing->seconds[k];
-  t[n - 1] = run_timing->total();
-  for (int k = 0; k < n; k++) t_sq[k] = t[k] * t[k];
-  MPI_Allreduce(t, t_min, n, MPI_DOUBLE, MPI_MIN, world);
-  MPI_Allreduce(t, t_max, n, MPI_DOUBLE, MPI_MAX, world);
-  MPI_Allreduce(t, t_sum, n, MPI_DOUBLE, MPI_SUM, world);
-  MPI_Allreduce(t_sq, t_sq_sum, n, MPI_DOUBLE, MPI_SUM, world);
-
-  // LAMMPS's own timers of this run (wall time, the ranks' mean)
-  constexpr int ndem = 4;
-  const double dem_local[ndem] = {timer->get_wall(Timer::PAIR), timer->get_wall(Timer::NEIGH),
-                                  timer->get_wall(Timer::COMM), timer->get_wall(Timer::MODIFY)};
-  double dem[ndem];
-  MPI_Allreduce(dem_local, dem, ndem, MPI_DOUBLE, MPI_SUM, world);
-  for (double &d : dem) d /= comm->nprocs;
-  if (comm->me != 0) return;
-
-  std::string block = coupler::timing_header(
-      fmt::format("\nfix hybrid/mpm timing breakdown ({} exchanges, {} rezones):", run_timing->exchanges,
-                  run_timing->rezones));
-  for (int k = 0; k < coupler::kTimeSections; k++)
-    block += coupler::timing_line(coupler::kTimeSectionLabels[k],
-                                  coupler::section_timing(t_min[k], t_max[k], t_sum[k], t_sq_sum[k], comm->nprocs, wall));
-  const coupler::SectionTiming total =
-      coupler::section_timing(t_min[n - 1], t_max[n - 1], t_sum[n - 1], t_sq_sum[n - 1], comm->nprocs, wall);
-  block += coupler::timing_line("Coupling", total);
-  block += fmt::format("DEM side (LAMMPS timer, avg): Pair {:.5g} Neigh {:.5g} Comm {:.5g} Modify {:.5g} s; "
-                       "coupling {:.5g} s of {:.5g} s wall ({:.2f}%, part of Modify)\n",
-                       dem[0], dem[1], dem[2], dem[3], total.avg, wall, total.percent);
-  utils::logmesg(lmp, block);
+  coupler::HostTimers timers;
+  timers.pair = timer->get_wall(Timer::PAIR), timers.neigh = timer->get_wall(Timer::NEIGH);
+  timers.comm = timer->get_wall(Timer::COMM), timers.modify = timer->get_wall(Timer::MODIFY);
+  const std::string block = run_log->timing_breakdown(world, "LAMMPS", timers);
+  if (comm->me == 0) utils::logmesg(lmp, block);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -440,15 +379,7 @@ void FixHybridMPM::fill_thermo_vector()
   coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start,
                          vector_cache);
   // where the coupling's wall time went, the ranks' mean (coupler::ThermoEntry)
-  const double times_local[5] = {all_timing->total(), all_timing->seconds[coupler::kTimeMpmWait],
-                                 all_timing->seconds[coupler::kTimeRezone] + all_timing->seconds[coupler::kTimeOracle],
-                                 run_timing->total(), MPI_Wtime() - run_start_wall};
-  double times[5];
-  MPI_Allreduce(times_local, times, 5, MPI_DOUBLE, MPI_SUM, world);
-  vector_cache[coupler::kVecTimeCoupling] = times[0] / comm->nprocs;
-  vector_cache[coupler::kVecTimeMpmWait] = times[1] / comm->nprocs;
-  vector_cache[coupler::kVecTimeRezone] = times[2] / comm->nprocs;
-  vector_cache[coupler::kVecTimeShare] = times[4] > 0.0 ? 100.0 * times[3] / times[4] : 0.0;
+  run_log->thermo_times(world, vector_cache);
   vector_step = update->ntimestep;
 }
 

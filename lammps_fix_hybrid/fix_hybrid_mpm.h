@@ -48,8 +48,8 @@ struct EnergyLedger;
 struct OracleSettings;
 struct FixOptions;
 struct RezoneReport;
-class RezoneTally;
-struct CouplingTimer;
+struct CouplingClock;
+class DemRunLog;
 }
 
 namespace LAMMPS_NS {
@@ -121,18 +121,12 @@ class FixHybridMPM : public Fix {
   double polydispersity;                  // of the group's diameters, for the packing template
   std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
   std::unique_ptr<coupler::PackingTemplate<3>> template3;
-  std::unique_ptr<coupler::RezoneTally> interval_rezones;    // since the last thermo output (rank 0 prints)
-  std::unique_ptr<coupler::RezoneTally> run_rezones;         // since the start of the run
-  void set_rezone_log(const std::string &value);
-  void log_rezone(const coupler::RezoneReport &report, int source, const double *before, const double *after);
-  void log_rezone_summary(bool end_of_run);
+  void log_rezone_summary(bool end_of_run);    // the rezones since the last thermo output, or of the run
   bool timestep_checked;                  // the DEM time step was checked (and logged) once
   double fewest_steps_warned;             // steps per contact at the last warning
   bool restored;                          // restarted after the conversion: load the MPM state
   bool state_loaded;                      // the MPM process has loaded it
-  double clock_time;                      // DEM time at clock_step (the coupling's clock)
-  bigint clock_step;                      // -1 until the first setup
-  double clock_dt;
+  std::unique_ptr<coupler::CouplingClock> clock;    // the coupling's clock (coupler/dem_coupling.hpp)
   // per-atom stress*volume (xx yy zz xy xz yz) stored for the next rezone: a per-atom array
   // LAMMPS carries with the atoms (sorting, exchange, other fixes' deletions) like weight
   double **atom_stress = nullptr;
@@ -156,12 +150,9 @@ class FixHybridMPM : public Fix {
   double grain_energy() const;            // kinetic (with rotation) + potential, this rank's grains
   void close_dem_bracket();               // LAMMPS's steps since the last bracket
 
-  // where the coupling's wall time goes on this rank (coupler/coupling_timer.hpp): this run's,
-  // for the breakdown printed at its end, and all runs', for the thermo vector
-  std::unique_ptr<coupler::CouplingTimer> run_timing;
-  std::unique_ptr<coupler::CouplingTimer> all_timing;
-  double run_start_wall;                  // MPI_Wtime at this run's setup
-  void charge(int section, double seconds);
+  // where the coupling's wall time goes on this rank (this run's, for the breakdown printed at its
+  // end, and all runs', for the thermo vector) and the rezones' summaries (coupler/dem_run_log.hpp)
+  std::unique_ptr<coupler::DemRunLog> run_log;
   void print_timing_breakdown();
 
   void connect();

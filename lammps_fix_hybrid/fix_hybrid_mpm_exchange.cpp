@@ -16,10 +16,10 @@
 #include "update.h"
 #include "utils.h"
 
-#include "coupler/coupling_timer.hpp"
 #include "coupler/dem_coupling.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
+#include "coupler/dem_run_log.hpp"
 #include "coupler/dem_session.hpp"
 #include "coupler/fix_options.hpp"
 #include "coupler/zones.hpp"
@@ -39,13 +39,14 @@ using namespace LAMMPS_NS::hybrid_mpm;
 
 double FixHybridMPM::next_exchange_time(bool force_output) const
 {
-  const bigint now = update->ntimestep, next = now + opt->every;
-  if (force_output) return -1.0;
-  if (opt->adapt_every > 0 && converted && now % opt->adapt_every == 0 && now < update->laststep) return -1.0;    // a rezone
-  if (output->restart_flag && output->next_restart >= now && output->next_restart < next) return -1.0;
-  if (next <= update->laststep) return dem_time(next);
-  if (opt->continuum.output_every > 0 && update->laststep > now) return dem_time(update->laststep);    // end-of-run frame
-  return -1.0;
+  coupler::ExchangeOutlook o;
+  o.now = update->ntimestep, o.last_step = update->laststep, o.every = opt->every;
+  o.forced_output = force_output;
+  o.rezone_next = opt->oracle_after(o.now, update->laststep, converted);
+  o.restart_file = output->restart_flag && output->next_restart >= o.now && output->next_restart < o.now + opt->every;
+  o.output_frames = opt->continuum.output_every > 0;
+  const bigint next = coupler::next_exchange_step(o);
+  return next < 0 ? -1.0 : dem_time(next);
 }
 
 coupler::StepHeader FixHybridMPM::step_header(int kind) const
@@ -67,8 +68,7 @@ double FixHybridMPM::dem_time() const
 // as the time of that step when it comes
 double FixHybridMPM::dem_time(bigint step) const
 {
-  if (clock_step < 0) return update->atime + (step - update->atimestep) * update->dt;
-  return clock_time + (step - clock_step) * clock_dt;
+  return clock->time_of(step, update->atime, update->atimestep, update->dt);
 }
 
 /* ----------------------------------------------------------------------
@@ -120,8 +120,7 @@ void FixHybridMPM::exchange(bool force_output)
   h.next_time = next_exchange_time(force_output);
   coupler::StepAck ack;
   coupler::ExchangeTally tally;
-  // the session's round trip is the wait for the MPM process, less the grains' updates and the
-  // output frame it calls back for
+  // the session's round trip is the wait for the MPM process (coupler::DemRunLog::charge_exchange)
   const double sent = MPI_Wtime();
   const coupler::StepOutcome outcome =
       coupler::exchange_grains<D>(*session, world, transfer<D>(), g, index, h, opt->continuum.pic, support, supported,
@@ -135,13 +134,7 @@ void FixHybridMPM::exchange(bool force_output)
   *last_ack = ack;
   exchanges++;
   link->count_exchange();
-  const double end = MPI_Wtime();
-  charge(coupler::kTimeMpmWait, replied - sent - tally.applying - tally.framing);
-  charge(coupler::kTimeApply, tally.applying);
-  charge(coupler::kTimeOutput, tally.framing);
-  charge(coupler::kTimeExchange, (end - start) - (replied - sent));
-  run_timing->exchanges++;
-  all_timing->exchanges++;
+  run_log->charge_exchange(start, sent, replied, MPI_Wtime(), tally.applying, tally.framing);
 }
 
 /* ----------------------------------------------------------------------
@@ -193,13 +186,7 @@ void FixHybridMPM::write_restart(FILE *fp)
   coupler::RestartRecord r;
   r.cell = opt->cell, r.exchanges = exchanges + restart_exchanges, r.every = opt->every;
   r.converted = converted, r.time = dem_time(), r.step = update->ntimestep;
-  double list[coupler::RestartRecord::kValues];
-  r.write(list);
-  if (comm->me == 0) {
-    int size = sizeof(list);
-    fwrite(&size, sizeof(int), 1, fp);
-    fwrite(list, sizeof(double), coupler::RestartRecord::kValues, fp);
-  }
+  if (comm->me == 0) r.write_file(fp);
 }
 
 /* ---------------------------------------------------------------------- */
@@ -210,9 +197,7 @@ void FixHybridMPM::restart(char *buf)
   const std::string warning = r.take_cell(opt->cell);
   if (!warning.empty() && comm->me == 0) error->warning(FLERR, warning);
   restart_exchanges = r.exchanges;
-  clock_time = r.time;
-  clock_step = r.step;
-  clock_dt = update->dt;
+  clock->restore(r, update->dt);
   // grains already became points: the MPM process continues from the state saved with the file
   converted = restored = r.converted;
   const std::string problem = r.state_problem(opt->mpm_state_path);

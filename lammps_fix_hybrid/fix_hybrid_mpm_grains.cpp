@@ -143,17 +143,17 @@ double FixHybridMPM::dem_steps_per_contact(std::string &why)
     if (force->pair && !timestep_checked && comm->me == 0)
       error->warning(FLERR, coupler::unchecked_pair_style(force->pair_style));
     timestep_checked = true;
-    return BIG;
+    return coupler::kBig;
   }
   const bool splits = opt->splits();
-  double local = BIG, lightest = BIG;
+  double local = coupler::kBig, lightest = coupler::kBig;
   for (int i = 0; i < atom->nlocal; i++) {
     local = std::min(local, atom->rmass[i]);
     if (splits && (atom->mask[i] & groupbit))
       local = std::min(local, atom->rmass[i] / weight[i] * opt->continuum.grain_weight);
   }
   MPI_Allreduce(&local, &lightest, 1, MPI_DOUBLE, MPI_MIN, world);
-  if (lightest >= BIG) return BIG;
+  if (lightest >= coupler::kBig) return coupler::kBig;
 
   coupler::HookeanContact contact = HookeanConstants::of(pair);
   contact.m_eff = 0.5 * lightest;

@@ -21,7 +21,6 @@
 namespace LAMMPS_NS {
 namespace hybrid_mpm {
 
-inline constexpr double BIG = 1.0e20;
 // per-atom values that travel with a grain (pack_exchange): weight, support (3), stored stress (6)
 inline constexpr int kPerAtomValues = coupler::GrainArrays::kValues;
 

@@ -1,7 +1,7 @@
 /* ----------------------------------------------------------------------
    fix hybrid/mpm (hybrid-granular project): zones (continuum regions,
    discrete regions) and rezones: the host's side of coupler/dem_rezone.hpp
-   (creating and deleting atoms), and the rezone log
+   (creating and deleting atoms)
 ------------------------------------------------------------------------- */
 
 #include "fix_hybrid_mpm_impl.h"
@@ -16,10 +16,10 @@
 #include "update.h"
 #include "utils.h"
 
-#include "coupler/coupling_timer.hpp"
 #include "coupler/dem_coupling.hpp"
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_ledger.hpp"
+#include "coupler/dem_run_log.hpp"
 #include "coupler/dem_rezone.hpp"
 #include "coupler/dem_session.hpp"
 #include "coupler/enrichment.hpp"
@@ -34,36 +34,6 @@ using namespace LAMMPS_NS;
 using namespace FixConst;
 using namespace LAMMPS_NS::hybrid_mpm;
 
-
-/* ----------------------------------------------------------------------
-   the rezone log (keyword rezone_log): every rezone is counted in the
-   summaries; its own two lines are printed in the full log, and in the
-   default one for the conversion at the start (its zones are not the oracle's)
-------------------------------------------------------------------------- */
-
-void FixHybridMPM::log_rezone(const coupler::RezoneReport &report, int source, const double *before,
-                              const double *after)
-{
-  interval_rezones->add(report);
-  run_rezones->add(report);
-  const bool conversion = source != coupler::kZonesOracle;
-  if (comm->me != 0) return;
-  if (opt->rezone_log == coupler::RezoneLog::kFull || (opt->rezone_log == coupler::RezoneLog::kSummary && conversion)) {
-    utils::logmesg(lmp, coupler::rezone_line(report) + "\n");
-    utils::logmesg(lmp, coupler::rezone_totals_line(report.step, before, after) + "\n");
-  }
-}
-
-// at thermo output: the rezones since the last one (if any); at the end of a run: its rezones
-void FixHybridMPM::log_rezone_summary(bool end_of_run)
-{
-  coupler::RezoneTally &tally = end_of_run ? *run_rezones : *interval_rezones;
-  const bool shown = end_of_run || opt->rezone_log != coupler::RezoneLog::kQuiet;
-  if (comm->me == 0 && shown && tally.rezones() > 0)
-    utils::logmesg(lmp, tally.summary_line(end_of_run ? coupler::kSummaryRun : coupler::kSummaryInterval,
-                                           update->ntimestep) + "\n");
-  tally.restart(update->ntimestep + 1);
-}
 
 /* ----------------------------------------------------------------------
    zone of every grid cell from the continuum regions (same on all ranks)
@@ -328,10 +298,9 @@ void FixHybridMPM::rezone(int source)
   // what the rezone did to the totals of grains plus points (exact up to round-off)
   double before[7], after[7];
   coupler::rezone_totals(grains_before, grains_after, ack, before, after);
-  log_rezone(report, source, before, after);
+  // its lines in the rezone log (every rezone with rezone_log full, the conversion by default)
+  const std::string lines = run_log->rezone(report, source != coupler::kZonesOracle, opt->rezone_log, before, after);
+  if (comm->me == 0 && !lines.empty()) utils::logmesg(lmp, lines);
   check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
-  charge(coupler::kTimeOracle, counts.oracle_wait);
-  charge(coupler::kTimeRezone, MPI_Wtime() - start - counts.oracle_wait);
-  run_timing->rezones++;
-  all_timing->rezones++;
+  run_log->charge_rezone(start, counts.oracle_wait);
 }

@@ -36,7 +36,7 @@ extern "C" void lammpsplugin_init(void *lmp, void *handle, void *regfunc)
 
   // from now on, an error in the input is passed on to the MPM process at MPI_Finalize
   try {
-    coupler::install_dem_finalize_hook(lammps->world);
+    coupler::install_dem_finalize_hook(lammps->world, "LAMMPS");
   } catch (const std::exception &e) {
     lammps->error->all(FLERR, std::string("hybridmpmplugin.so: ") + e.what());
   }

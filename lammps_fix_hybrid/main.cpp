@@ -48,7 +48,7 @@ void check_abi(LAMMPS *lmp)
 
 int main(int argc, char **argv)
 {
-  MPI_Comm lammps_comm = coupler::start_dem_job(&argc, &argv, "lmp_hybrid");
+  MPI_Comm lammps_comm = coupler::start_dem_job(&argc, &argv, "lmp_hybrid", "LAMMPS");
 
   try {
     auto *lammps = new LAMMPS(argc, argv, lammps_comm);

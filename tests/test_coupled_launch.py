@@ -152,7 +152,8 @@ def test_bad_fix_line_is_a_lammps_error_naming_the_keyword(tmp_path, hybrid_prog
     assert proc.returncode != 0, text
     assert "ERROR: Illegal fix hybrid/mpm command: " + message in text, text
     # the MPM process is told at once instead of waiting for its handshake timeout
-    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert ("mpm_solver: error: the DEM host ended before connecting: LAMMPS ended before fix hybrid/mpm "
+            "connected (an error in the LAMMPS input before the first run") in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -190,7 +191,7 @@ def test_unstable_dem_time_step_is_refused_naming_the_safe_step(tmp_path, hybrid
     assert m, text
     assert float(m.group(1)) == float(timestep)
     assert float(m.group(2)) == pytest.approx(safe_step(share), rel=1e-5)
-    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert "mpm_solver: error: the DEM host ended before connecting" in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -406,7 +407,7 @@ def test_bad_fix_line_through_the_plugin(tmp_path, hybrid_plugin):
     text = output(proc)
     assert proc.returncode != 0, text
     assert "ERROR: Illegal fix hybrid/mpm command: unknown keyword 'bogus'" in text, text
-    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert "mpm_solver: error: the DEM host ended before connecting" in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -433,7 +434,7 @@ def test_deck_without_the_fix_ends_the_mpm_process_with_a_reason(tmp_path, hybri
                            "-log", "none", timeout=60)
     text = output(proc)
     assert proc.returncode != 0, text
-    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert "mpm_solver: error: the DEM host ended before connecting" in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -514,7 +515,7 @@ def test_triclinic_box_is_refused_when_the_fix_is_defined(tmp_path, hybrid_progr
     text = output(proc)
     assert proc.returncode != 0, text
     assert TRICLINIC in text, text
-    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    assert "mpm_solver: error: the DEM host ended before connecting" in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -577,7 +578,7 @@ def test_mpm_solver_coupled_without_lammps_is_a_clear_error(hybrid_programs):
     proc = subprocess.run([hybrid_programs["mpm_solver"], "--coupled"], capture_output=True, text=True, timeout=60,
                           env=env())
     assert proc.returncode == 2, output(proc)
-    assert "no LAMMPS process in this MPI job" in proc.stderr
+    assert "no DEM host process in this MPI job" in proc.stderr
 
 
 def test_mpm_solver_in_an_mpmd_job_without_coupled_refuses(tmp_path, hybrid_programs):

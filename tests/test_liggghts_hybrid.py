@@ -17,7 +17,7 @@ import pytest
 from conftest import REPO
 from hgtools.logs import thermo_tables
 from test_coupled_physics import liggghts_headers
-from test_coupled_launch import LAUNCH, STOP_WITHIN, env, material_file, output
+from test_coupled_launch import LAUNCH, STOP_WITHIN, TIMING_SECTIONS, env, material_file, output, timing_blocks
 
 DECK = REPO / "input_decks" / "hybrid" / "momentum_3d.liggghts"
 
@@ -81,7 +81,9 @@ def test_liggghts_refuses_what_it_does_not_support_naming_it(tmp_path, liggghts_
     assert proc.returncode != 0, text
     assert "ERROR: Fix hybrid/mpm: " + message in text, text
     # the MPM process is told at once instead of waiting for its handshake timeout
-    assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+    # the MPM process cannot know its host before the handshake: the host's own note names it
+    assert ("mpm_solver: error: the DEM host ended before connecting: LIGGGHTS ended before fix hybrid/mpm connected "
+            "(an error in the LIGGGHTS input before the first run") in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -92,7 +94,8 @@ def test_liggghts_error_during_the_coupled_run_stops_the_mpm_process(tmp_path, l
     text = output(proc)
     assert proc.returncode != 0, text
     assert "ERROR: Unknown command: no_such_command" in text, text
-    assert "mpm_solver: error: LAMMPS stopped the coupled run after 5 exchange(s)" in text, text
+    assert ("mpm_solver: error: LIGGGHTS stopped the coupled run after 5 exchange(s): LIGGGHTS stopped on an error "
+            "during the coupled run - see the LIGGGHTS output for the ERROR line") in text, text
     assert "ranks 0-1 are LIGGGHTS (liggghts_hybrid), rank 2 is mpm_solver" in text, text
     assert elapsed < STOP_WITHIN
 
@@ -140,11 +143,12 @@ def test_liggghts_time_step_is_checked_against_its_contact_model(tmp_path, liggg
     assert says in text, text
     assert (proc.returncode != 0) == says.startswith("ERROR"), text
     if proc.returncode != 0:
-        assert "mpm_solver: error: LAMMPS ended before connecting" in text, text
+        assert "mpm_solver: error: the DEM host ended before connecting" in text, text
         assert elapsed < STOP_WITHIN
     else:
         assert "fix hybrid/mpm: finished the coupled run after 10 exchange(s)" in text, text
         assert "handshake ok with LIGGGHTS 3.8.0" in text, text    # the MPM process names its host
+        assert "mpm_solver: coupled run finished at LIGGGHTS step 10 after 10 exchange(s)" in text, text
 
 
 def test_liggghts_restart_continues_the_coupled_run(tmp_path, liggghts_hybrid):
@@ -198,7 +202,7 @@ def test_liggghts_gravity_changed_between_runs_is_refused(tmp_path, liggghts_hyb
     assert proc.returncode != 0, text
     assert ("ERROR: Fix hybrid/mpm: gravity changed since the coupled run started: (0, 0, 0) m/s^2 then, "
             "(0, -5, 0) now") in text, text
-    assert "mpm_solver: error: LAMMPS stopped the coupled run after 2 exchange(s)" in text, text
+    assert "mpm_solver: error: LIGGGHTS stopped the coupled run after 2 exchange(s)" in text, text
     assert elapsed < STOP_WITHIN
 
 
@@ -231,3 +235,177 @@ def test_liggghts_material_applies_to_its_linear_spring_dashpot_only(tmp_path, l
                   r"friction angle (\S+) deg, mu_s ([0-9.e+-]+)", text)
     assert m, text
     assert [float(g) for g in m.groups()[1:]] == [0.2, 17.46, 0.3]
+
+
+ADAPTIVE_DECK = REPO / "input_decks" / "hybrid" / "adaptive_3d.liggghts"
+RUN_SUMMARY = re.compile(r"^fix hybrid/mpm: (steps|run of steps) (\d+)-(\d+): (\d+) rezones?: ", re.M)
+
+
+def test_liggghts_timing_breakdown_rezone_summaries_and_fix_modify(tmp_path, liggghts_hybrid):
+    """The LIGGGHTS host keeps the LAMMPS host's account of a run (coupler::DemRunLog): two coupled
+    runs with adaptive zones on 2 ranks each end with the timing breakdown in LAMMPS's columns
+    (sections adding up to the coupling's total, its own timers on the last line); thermo prints
+    entries 30-33, positive, with the MPM wait and the rezones within the coupling's time and that
+    within the run's loop time; the rezone log sums the rezones at thermo output, and fix_modify
+    changes rezone_log between the runs (quiet: only the run's summary)."""
+    text = ADAPTIVE_DECK.read_text()
+    out = re.sub(r"^thermo_style .*$", "thermo_style    custom step atoms f_couple f_couple[30] f_couple[31] "
+                 "f_couple[32] f_couple[33]", text, flags=re.M)
+    assert out != text
+    out += "\nfix_modify      couple rezone_log quiet depth 0.012\nrun             40\n"
+    deck = tmp_path / "deck.in"
+    deck.write_text(out)
+    proc, _ = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "60", "-var", "rezone_log",
+                     "summary", "-log", "log.lammps", timeout=120, cwd=tmp_path)
+    assert proc.returncode == 0, output(proc)
+    log = (tmp_path / "log.lammps").read_text(errors="replace")
+    # the breakdown at the end of each run
+    blocks = timing_blocks(log)
+    assert [b["exchanges"] for b in blocks] == [12, 8], log      # every 5 steps: 60 then 40 more
+    assert blocks[0]["rezones"] >= 2 and blocks[1]["rezones"] >= 1, log    # the conversion and the oracle's
+    for b in blocks:
+        rows = b["rows"]
+        assert list(rows) == TIMING_SECTIONS, rows
+        total = rows["Coupling"]
+        assert sum(r[1] for s, r in rows.items() if s != "Coupling") == pytest.approx(total[1], rel=1e-3, abs=1e-4)
+        assert 0.0 < rows["MPM wait"][1] <= total[1] and rows["Rezone"][1] > 0.0, rows
+        # LIGGGHTS times no fixes: the coupling is part of its Other (the loop less its timed sections)
+        m = re.match(r"DEM side \(LIGGGHTS timer, avg\): Pair (\S+) Neigh (\S+) Comm (\S+) Other (\S+) s; "
+                     r"coupling (\S+) s of (\S+) s wall \((\S+)%, part of Other\)$", b["dem"])
+        assert m, b["dem"]
+        pair, neigh, comm, other, coupling, wall, share = (float(g) for g in m.groups())
+        assert pair > 0.0 and min(neigh, comm) >= 0.0, b["dem"]
+        assert 0.0 < coupling <= other * (1 + 1e-3) and other <= wall, b["dem"]
+        assert share == pytest.approx(total[4], abs=0.01) and 0.0 < share <= 100.0, b["dem"]
+    # thermo entries 30-33 within each run's loop time
+    loops = [float(t) for t in re.findall(r"^Loop time of (\S+) on 2 procs", log, flags=re.M)]
+    tables = thermo_tables(liggghts_headers(log, out))
+    assert len(tables) == len(loops) == 2, log
+    coupling_before = 0.0
+    for table, loop in zip(tables, loops):
+        last = table[-1]
+        coupling, wait, rezone, share = (last[f"f_couple[{k}]"] for k in (30, 31, 32, 33))
+        assert 0.0 < wait and 0.0 < rezone and wait + rezone <= coupling, last
+        assert coupling - coupling_before <= loop, (last, loop)    # entry 30 counts all runs
+        assert 0.0 < share <= 100.0, last
+        coupling_before = coupling
+    # rezone log: summaries at thermo output in the first run (summary), only the run's in the second
+    second = log.index("fix_modify      couple rezone_log quiet")
+    first_kinds = [m[1] for m in RUN_SUMMARY.finditer(log[:second])]
+    second_kinds = [m[1] for m in RUN_SUMMARY.finditer(log[second:])]
+    assert "steps" in first_kinds and first_kinds[-1] == "run of steps", log
+    assert second_kinds == ["run of steps"], log
+    # the oracle's rezones print no lines of their own at either level (only the conversion's)
+    assert len(re.findall(r"^fix hybrid/mpm: step \d+: \d+ grains became", log, flags=re.M)) == 1, log
+
+
+def test_liggghts_fix_modify_refuses_a_bad_value_naming_it(tmp_path, liggghts_hybrid):
+    deck = edited_deck(tmp_path, lambda t: t.replace("thermo          10",
+                                                     "fix_modify      couple rezone_log loud\nthermo          10"))
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "10", "-log", "none")
+    text = output(proc)
+    assert proc.returncode != 0 and elapsed < STOP_WITHIN, text
+    assert ("ERROR: Illegal fix hybrid/mpm command: keyword 'rezone_log' must be full, summary or quiet, not "
+            "'loud'") in text, text
+
+
+def plate_stl(path: Path, z: float, lo: float = 0.001, hi: float = 0.159) -> Path:
+    """An ASCII STL of a square plate at height z: two triangles."""
+    tri = [((lo, lo, z), (hi, lo, z), (hi, hi, z)), ((lo, lo, z), (hi, hi, z), (lo, hi, z))]
+    facets = "".join("facet normal 0 0 1\nouter loop\n" + "".join(f"vertex {x} {y} {zz}\n" for x, y, zz in t) +
+                     "endloop\nendfacet\n" for t in tri)
+    path.write_text(f"solid plate\n{facets}endsolid plate\n")
+    return path
+
+
+def with_mesh_wall(stl: Path):
+    """The deck with a mesh wall (fix mesh/surface + fix wall/gran ... mesh) before the coupling."""
+    def edit(text: str) -> str:
+        return sub(r"^(fix\s+couple\s)", f"fix             plate all mesh/surface file {stl} type 1\n"
+                   "fix             wall all wall/gran model hooke/stiffness tangential history mesh n_meshes 1 "
+                   "meshes plate\n" + r"\1")(text)
+    return edit
+
+
+def test_liggghts_mesh_wall_is_a_boundary_of_the_zone_oracle(tmp_path, liggghts_hybrid):
+    """A mesh wall through the middle of the adaptive 3D patch (a plate at z = 0.084, between two
+    layers of grains that just touch it): the fix finds its triangles and the grid cells they pass
+    through (one layer of 16 x 16 cells of 0.01 m), and the oracle keeps them discrete like the
+    cells of discrete regions: the continuum is smaller than without the wall, with the same grains.
+    (Without the fix knowing the wall, the dense grains on both sides of it would be continuum.)"""
+    stl = plate_stl(tmp_path / "plate.stl", 0.084)
+    base = ADAPTIVE_DECK.read_text()
+    continuum = {}
+    for name, text in (("without", base), ("with", with_mesh_wall(stl)(base))):
+        d = tmp_path / name
+        d.mkdir()
+        (d / "deck.in").write_text(text)
+        proc, _ = launch("--host", "liggghts", "-np", "2", "deck.in", "-var", "nsteps", "10", "-var", "rezone_log",
+                         "full", "-log", "log.lammps", timeout=120, cwd=d)
+        assert proc.returncode == 0, output(proc)
+        log = (d / "log.lammps").read_text(errors="replace")
+        said = re.findall(r"^fix hybrid/mpm: mesh walls \(fix mesh/surface (\S+)\): (\d+) triangles on (\d+) grid cells, "
+                          r"kept discrete", log, flags=re.M)
+        assert said == ([("plate", "2", "256")] if name == "with" else []), log
+        # the conversion at step 1 is the oracle's first map (no continuum regions)
+        first = re.search(r"^fix hybrid/mpm: step 1: .* grid cells in the box: (\d+) continuum, (\d+) hybrid", log,
+                          flags=re.M)
+        assert first, log
+        continuum[name] = int(first.group(1))
+    assert continuum["without"] > 0, continuum
+    assert continuum["with"] < continuum["without"], continuum
+
+
+def test_liggghts_mesh_wall_inside_continuum_regions_is_refused(tmp_path, liggghts_hybrid):
+    """Fixed continuum regions cannot leave a mesh wall's grains discrete: a plate through the
+    momentum deck's continuum core is an error naming the problem and both ways out."""
+    deck = edited_deck(tmp_path, with_mesh_wall(plate_stl(tmp_path / "plate.stl", 0.0501, hi=0.099)))
+    proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "10", "-log", "none",
+                           cwd=tmp_path)
+    text = output(proc)
+    assert proc.returncode != 0 and elapsed < STOP_WITHIN, text
+    assert re.search(r"ERROR: Fix hybrid/mpm: the continuum regions make \d+ grid cells that a mesh wall \(fix "
+                     r"mesh/surface\) passes through continuum or hybrid", text), text
+    assert "mpm_solver: error: LIGGGHTS stopped the coupled run" in text, text
+
+
+INSERTION = """fix             pts all particletemplate/sphere 15485867 atom_type 1 density constant 2500 radius constant 0.002
+fix             pdd all particledistribution/discrete 32452843 1 pts 1.0
+region          ins block 0.084 0.098 0.02 0.08 0.02 0.08 units box
+fix             ins {group} insert/pack seed 49979687 distributiontemplate pdd insert_every once overlapcheck yes &
+                all_in yes particles_in_region 20 region ins
+"""
+
+
+@pytest.mark.parametrize("coupled, inserted", [("all", "all"), ("grains", "grains"), ("grains", "all")])
+def test_liggghts_inserted_particles_join_the_coupled_group(tmp_path, liggghts_hybrid, coupled, inserted):
+    """Particles fix insert/pack makes during a coupled run (20 spheres of 4 mm beside the
+    momentum deck's cube, at rest, at the start of a second run) get the fix's per-atom data (weight 1, no support force) and
+    join the coupling when the insertion fix's group is the coupled one: the total mass of grains
+    plus points (f_couple[8]) grows by exactly their mass and the total momentum does not change.
+    Inserted into another group they stay outside the coupling, and the fix says so."""
+    def edit(text: str) -> str:
+        if coupled != "all":
+            text = sub(r"^(fix\s+couple) all ", rf"\1 {coupled} ")(text)
+        text = sub(r"^(region\s+core .*)$", r"\1\ngroup           grains region patch")(text)
+        # a first run converts the core; the insertion fix, defined after it, inserts at the next run's start
+        return sub(r"^run\s+\$\{nsteps\}$", "run 10\n" + INSERTION.format(group=inserted) + "run 20")(text)
+    deck = edited_deck(tmp_path, edit)
+    proc, _ = launch("--host", "liggghts", "-np", "2", str(deck), "-log", "log.lammps", cwd=tmp_path)
+    text = output(proc)
+    assert proc.returncode == 0, text
+    log = liggghts_headers((tmp_path / "log.lammps").read_text(errors="replace"), deck.read_text())
+    first, last = thermo_tables(log)[0][-1], thermo_tables(log)[-1][-1]
+    assert (first["Step"], last["Step"]) == (10, 30)
+    assert last["Atoms"] == first["Atoms"] + 20, (first, last)    # inserted at step 11
+    warned = ("WARNING: Fix hybrid/mpm: fix insert/pack ins inserts particles into group all, not into the coupled "
+              "group grains: they will not be coupled nor counted in the fix's totals; give the insertion fix the "
+              "group grains to couple them")
+    joined = coupled == inserted or coupled == "all"
+    assert (warned in text) != joined, text
+    grain_mass = 2500 * 4 / 3 * math.pi * 0.002 ** 3
+    added = 20 * grain_mass if joined else 0.0
+    assert last["f_couple[8]"] == pytest.approx(first["f_couple[8]"] + added, rel=1e-12), (first, last)
+    scale = first["f_couple[8]"] * 0.05
+    for col in ("f_couple[9]", "f_couple[10]", "f_couple[11]"):
+        assert abs(last[col] - first[col]) <= 1e-13 * scale, (col, first[col], last[col])

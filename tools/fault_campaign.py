@@ -154,7 +154,7 @@ def fix_case(name, args, expect, description=None, kind="bad_input", edit=None, 
 
 
 LMP_ERR = r"ERROR: Illegal fix hybrid/mpm command: "
-MPM_TOLD = r"[\s\S]*mpm_solver: error: LAMMPS ended before connecting"
+MPM_TOLD = r"[\s\S]*mpm_solver: error: the DEM host ended before connecting"
 
 
 def bad_fix_cases() -> list[Case]:
@@ -226,7 +226,7 @@ def lammps_cases() -> list[Case]:
                        r"mpm_solver: error: LAMMPS stopped the coupled run",
                        handshake_deck(extra="\nno_such_command 1\n"), quick=True))
     c.append(deck_case("deck_without_fix", "bad_input", "a deck without fix hybrid/mpm",
-                       r"mpm_solver: error: LAMMPS ended before connecting",
+                       r"mpm_solver: error: the DEM host ended before connecting",
                        handshake_deck(chain(sub(r"^fix\s+couple.*$", ""), sub(" f_couple", "")))))
     c.append(deck_case("deck_adaptive_cells_too_small", "bad_input",
                        "adaptive zones with cells under 2 grain diameters",
@@ -438,7 +438,7 @@ def program_cases() -> list[Case]:
         Case("option_launch_deck_missing", "bad_input", "tools/hybrid_launch.py on a missing deck",
              r"deck .* not found", lambda ctx: [python(), str(LAUNCH), "-np", "1", str(ctx.dir / "nope.lmp")]),
         Case("peer_mpm_alone", "bad_input", "mpm_solver --coupled without LAMMPS",
-             r"no LAMMPS process in this MPI job", lambda ctx: [ctx.programs["mpm_solver"], "--coupled"], quick=True),
+             r"no DEM host process in this MPI job", lambda ctx: [ctx.programs["mpm_solver"], "--coupled"], quick=True),
         Case("peer_lammps_alone", "bad_input", "lmp_hybrid with the fix but no MPM process",
              r"ERROR: Fix hybrid/mpm: no MPM process in this MPI job",
              lambda ctx: [str(MPIRUN), "-np", "2", ctx.programs["lmp_hybrid"], "-in",
@@ -470,7 +470,7 @@ HOSTILE_EXPECT = {
     "hello_empty": r"refused the handshake: version mismatch: .*a 0-byte Hello",
     "hello_oversized": r"refused the handshake: version mismatch: .*a 1049240-byte Hello",
     "hello_wrong_tag": r"mpm_solver: error: protocol error: received an unknown message \(tag 4242, 664 bytes\)",
-    "hello_step_first": r"mpm_solver: error: protocol error: received StepHeader \(tag 7310, 56 bytes\) from LAMMPS "
+    "hello_step_first": r"mpm_solver: error: protocol error: received StepHeader \(tag 7310, 56 bytes\) from the DEM host "
                         r"while waiting for the handshake",
     "hello_units_lj": r"refused the handshake: .*units 'lj', mpm_solver needs units si",
     "hello_dimension_4": r"refused the handshake: dimension 4 is not supported",
@@ -487,7 +487,7 @@ HOSTILE_EXPECT = {
     "hello_cfl_zero": r"refused the handshake: the Courant number cfl must be in \(0, 1\]",
     "hello_container_outside": r"refused the handshake: the container along x .* leaves the box",
     "hello_points_per_axis_0": r"refused the handshake: points per cell and axis must be 1 to 4",
-    "hello_silent": r"mpm_solver: error: no reply from LAMMPS within 5 s while waiting for the handshake",
+    "hello_silent": r"mpm_solver: error: no reply from the DEM host within 5 s while waiting for the handshake",
     "hello_die": r"exited on signal 9",
     # exchanges: the MPM process answers with an error acknowledgement naming the problem
     "header_truncated": r"answered with an error: protocol error: .*has 30 bytes, expected 56",
@@ -506,9 +506,9 @@ HOSTILE_EXPECT = {
     "records_ragged": r"answered with an error: protocol error: .*not a multiple of 40",
     "records_oversized": r"answered with an error: .*outside the grid",
     "out_of_order_records_first": r"answered with an error: protocol error: received NodeRecords "
-                                  r"\(tag 7314, 120 bytes\) from LAMMPS while waiting for the next message",
+                                  r"\(tag 7314, 120 bytes\) from the DEM host while waiting for the next message",
     "out_of_order_two_headers": r"answered with an error: protocol error: received StepHeader \(tag 7310, 56 bytes\) "
-                                r"from LAMMPS while "
+                                r"from the DEM host while "
                                 r"waiting for the grain node sums",
     "unknown_tag": r"answered with an error: protocol error: received an unknown message \(tag 4242, 7 bytes\)",
     "reply_tag_from_dem": r"answered with an error: protocol error: received StepAck",
@@ -522,7 +522,7 @@ HOSTILE_EXPECT = {
     "rezone_volume_off_grid": r"answered with an error: .*cell 1000000000 outside the grid",
     "rezone_volume_nan": r"answered with an error: .*non-finite or negative grain volume or mass for cell 40",
     "die_mid_exchange": r"exited on signal 9",
-    "hang_mid_exchange": r"mpm_solver: error: no reply from LAMMPS within 5 s while waiting for the grain node sums",
+    "hang_mid_exchange": r"mpm_solver: error: no reply from the DEM host within 5 s while waiting for the grain node sums",
 }
 HOSTILE_QUICK = ("hello_truncated", "header_truncated", "records_node_off_grid", "records_nan_momentum",
                  "out_of_order_two_headers", "die_mid_exchange")

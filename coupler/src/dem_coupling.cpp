@@ -325,6 +325,22 @@ RestartRecord RestartRecord::read(const double *in) {
   return r;
 }
 
+void RestartRecord::write_file(std::FILE *fp) const {
+  double list[kValues];
+  write(list);
+  const int size = sizeof(list);
+  std::fwrite(&size, sizeof(int), 1, fp);
+  std::fwrite(list, sizeof(double), kValues, fp);
+}
+
+std::int64_t next_exchange_step(const ExchangeOutlook &o) {
+  const std::int64_t next = o.now + o.every;
+  if (o.forced_output || o.rezone_next || o.restart_file) return -1;
+  if (next <= o.last_step) return next;
+  if (o.output_frames && o.last_step > o.now) return o.last_step;    // the end-of-run frame
+  return -1;
+}
+
 std::string RestartRecord::take_cell(double &input_cell) const {
   if (input_cell <= 0.0) input_cell = cell;
   if (cell == input_cell) return "";
@@ -377,14 +393,14 @@ std::string material_line(const FixOptions &options) {
          ", critical packing " + general(c.critical_packing, 4);
 }
 
-MPI_Comm start_dem_job(int *argc, char ***argv, const char *program) {
+MPI_Comm start_dem_job(int *argc, char ***argv, const char *program, const std::string &host) {
   MPI_Init(argc, argv);
   int me = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &me);
   MPI_Comm dem_comm = MPI_COMM_NULL;
   MPI_Comm_split(MPI_COMM_WORLD, kDemColor, me, &dem_comm);
   try {
-    install_dem_finalize_hook(dem_comm);
+    install_dem_finalize_hook(dem_comm, host);
   } catch (const std::exception &e) {
     std::fprintf(stderr, "%s: ERROR: %s\n", program, e.what());
     MPI_Abort(MPI_COMM_WORLD, 1);

@@ -61,7 +61,7 @@ DemStepCheck check_elastic_step(const std::string &model, double radius, double 
 
 double agreement_time(double relax_time, double steps_per_contact, double dt) {
   if (relax_time >= 0.0) return relax_time;
-  return 0.5 * (steps_per_contact < 1e19 ? steps_per_contact : 20.0) * dt;
+  return 0.5 * (steps_per_contact < kBig ? steps_per_contact : 20.0) * dt;
 }
 
 bool warn_poor_step(double steps, double warn_below, double &fewest_warned) {

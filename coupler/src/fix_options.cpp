@@ -161,6 +161,16 @@ RezoneLog rezone_log_option(const std::string &value) {
   return *level;
 }
 
+bool modify_option(FixOptions &o, const std::string &key, const std::string &value, int dimension) {
+  if (key == "rezone_log") {
+    o.rezone_log = rezone_log_option(value);
+    return true;
+  }
+  if (!set_oracle_option(o.oracle, key, value)) return false;
+  check_oracle_options(o, dimension);
+  return true;
+}
+
 FixOptions parse_fix_options(const std::vector<std::string> &words, int dimension, int ntypes,
                              const std::function<bool(const std::string &)> &region_exists) {
   FixOptions o;

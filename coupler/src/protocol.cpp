@@ -71,9 +71,13 @@ struct DemGlobal {
   int remote_leader = -1;     ///< MPI_COMM_WORLD rank of the MPM leader, -1 if none
   Link* link = nullptr;
   DemPhase phase = DemPhase::kNotConnected;
-  std::string unconnected_reason =
-      "LAMMPS ended before fix hybrid/mpm connected (an error in the LAMMPS input before the first run, "
-      "or no fix hybrid/mpm in the input) - see the LAMMPS output";
+  std::string host = "LAMMPS";    ///< the DEM host's name (install_dem_finalize_hook)
+  std::string unconnected_reason = unconnected_text(host);
+
+  static std::string unconnected_text(const std::string& host) {
+    return host + " ended before fix hybrid/mpm connected (an error in the " + host +
+           " input before the first run, or no fix hybrid/mpm in the input) - see the " + host + " output";
+  }
 };
 
 DemGlobal& dem() {
@@ -98,8 +102,8 @@ void send_end_notes() {
   g.notes_sent = true;
   if (g.link != nullptr) {
     if (g.link->state() == Link::State::kConnected && g.link->leader())
-      g.link->abort_note(
-          "LAMMPS stopped on an error during the coupled run - see the LAMMPS output for the ERROR line");
+      g.link->abort_note(g.host + " stopped on an error during the coupled run - see the " + g.host +
+                         " output for the ERROR line");
     if (g.link->state() == Link::State::kConnected) g.link->mark(Link::State::kAborted);
     return;
   }
@@ -383,10 +387,12 @@ std::unique_ptr<Link> connect_dem(MPI_Comm local, Hello hello) {
   const int remote = first_world_rank_outside(local);
   if (remote < 0) {
     g.phase = DemPhase::kNoPeer;
-    throw PeerError("no MPM process in this MPI job: MPI_COMM_WORLD holds only the " + std::to_string(n) +
-                    " LAMMPS rank(s). Start both programs in one mpirun, e.g. 'mpirun -np " + std::to_string(n) +
-                    " lmp_hybrid -in deck : -np 1 mpm_solver --coupled' (tools/hybrid_launch.py composes it; "
-                    "a LAMMPS with the plugin also needs '-mpicolor 0')");
+    const bool lammps = g.host == "LAMMPS";
+    throw PeerError("no MPM process in this MPI job: MPI_COMM_WORLD holds only the " + std::to_string(n) + " " +
+                    g.host + " rank(s). Start both programs in one mpirun, e.g. 'mpirun -np " + std::to_string(n) +
+                    (lammps ? " lmp_hybrid" : " liggghts_hybrid") +
+                    " -in deck : -np 1 mpm_solver --coupled' (tools/hybrid_launch.py composes it" +
+                    (lammps ? "; a LAMMPS with the plugin also needs '-mpicolor 0')" : ")"));
   }
   hello.protocol = kProtocolVersion;
   set_text(hello.release, wire_release());
@@ -444,12 +450,13 @@ std::unique_ptr<Link> connect_mpm(MPI_Comm local, double hello_timeout_s, Hello&
   MPI_Comm_rank(local, &me);
   const int remote = first_world_rank_outside(local);
   if (remote < 0)
-    throw PeerError("no LAMMPS process in this MPI job (mpm_solver --coupled runs alongside LAMMPS in one mpirun: "
-                    "'mpirun -np 2 lmp_hybrid -in deck : -np 1 mpm_solver --coupled', see tools/hybrid_launch.py)");
+    throw PeerError("no DEM host process in this MPI job (mpm_solver --coupled runs alongside LAMMPS or LIGGGHTS in "
+                    "one mpirun: 'mpirun -np 2 lmp_hybrid -in deck : -np 1 mpm_solver --coupled', or liggghts_hybrid "
+                    "in its place; see tools/hybrid_launch.py)");
   Outcome out;
   if (me == 0) {
     try {
-      Message m = recv_message(MPI_COMM_WORLD, remote, {kTagHello, kTagAbort}, hello_timeout_s, "LAMMPS",
+      Message m = recv_message(MPI_COMM_WORLD, remote, {kTagHello, kTagAbort}, hello_timeout_s, kUnknownDemHost,
                                "the handshake (Hello) from fix hybrid/mpm", peer_ended);
       if (m.tag == kTagAbort) {
         out.status = 3;
@@ -475,7 +482,7 @@ std::unique_ptr<Link> connect_mpm(MPI_Comm local, double hello_timeout_s, Hello&
         }
         reply.ok = error.empty() ? 1 : 0;
         set_text(reply.message, error.empty() ? greeting : error);
-        send_msg(MPI_COMM_WORLD, remote, kTagHelloReply, reply, 10.0, "the handshake reply to LAMMPS");
+        send_msg(MPI_COMM_WORLD, remote, kTagHelloReply, reply, 10.0, "the handshake reply to the DEM host");
         if (!error.empty()) {
           out.status = 1;
           set_text(out.message, error);
@@ -492,20 +499,35 @@ std::unique_ptr<Link> connect_mpm(MPI_Comm local, double hello_timeout_s, Hello&
   MPI_Bcast(&out, sizeof out, MPI_BYTE, 0, local);
   MPI_Bcast(&hello, sizeof hello, MPI_BYTE, 0, local);
   if (out.status == 4)
-    throw PeerEnded("LAMMPS ended before connecting: it reached the end of the job without a handshake (an error in "
-                    "its input or command line, or no run with fix hybrid/mpm - see the LAMMPS output)");
-  if (out.status == 3) throw PeerEnded("LAMMPS ended before connecting: " + get_text(out.message));
+    throw PeerEnded(std::string(kUnknownDemHost) + " ended before connecting: it reached the end of the job without "
+                    "a handshake (an error in its input or command line, or no run with fix hybrid/mpm - see its "
+                    "output)");
+  if (out.status == 3) throw PeerEnded(std::string(kUnknownDemHost) + " ended before connecting: " + get_text(out.message));
   if (out.status == 2) throw PeerTimeout(get_text(out.message));
   if (out.status != 0) throw PeerError(get_text(out.message));
-  // The MPM side waits for LAMMPS (receiving or sending) at most the DEM's idle timeout.
-  auto link = std::make_unique<Link>(make_intercomm(local, remote), me == 0, hello.idle_timeout, "LAMMPS");
+  // The MPM side waits for the DEM host (receiving or sending) at most the DEM's idle timeout.
+  auto link = std::make_unique<Link>(make_intercomm(local, remote), me == 0, hello.idle_timeout,
+                                     dem_host_name(get_text(hello.host)));
   link->set_peer_info(get_text(hello.host));
   return link;
 }
 
 // ----------------------------------------------------------------- DEM global handle
-void install_dem_finalize_hook(MPI_Comm local) {
+std::string dem_host_name(const std::string& host_text) {
+  for (const char* known : {"LAMMPS", "LIGGGHTS"}) {
+    const std::string name(known);
+    if (host_text.compare(0, name.size(), name) == 0 && (host_text.size() == name.size() || host_text[name.size()] == ' '))
+      return name;
+  }
+  return kUnknownDemHost;
+}
+
+void install_dem_finalize_hook(MPI_Comm local, const std::string& host) {
   DemGlobal& g = dem();
+  if (g.host != host) {
+    g.host = host;
+    g.unconnected_reason = DemGlobal::unconnected_text(host);
+  }
   int me = 0;
   MPI_Comm_rank(local, &me);
   g.leader = me == 0;
@@ -517,13 +539,13 @@ void install_dem_finalize_hook(MPI_Comm local) {
     int keyval = MPI_KEYVAL_INVALID;
     int rc = MPI_Comm_create_keyval(MPI_COMM_NULL_COPY_FN, dem_finalize_hook, &keyval, nullptr);
     if (rc != MPI_SUCCESS)
-      throw std::runtime_error("cannot install the MPI_Finalize hook that tells the MPM process about LAMMPS "
-                               "errors (MPI_Comm_create_keyval: " + mpi_error_text(rc) + ")");
+      throw std::runtime_error("cannot install the MPI_Finalize hook that tells the MPM process about " + host +
+                               " errors (MPI_Comm_create_keyval: " + mpi_error_text(rc) + ")");
     rc = MPI_Comm_set_attr(MPI_COMM_SELF, keyval, nullptr);
     if (rc != MPI_SUCCESS) {
       MPI_Comm_free_keyval(&keyval);
-      throw std::runtime_error("cannot install the MPI_Finalize hook that tells the MPM process about LAMMPS "
-                               "errors (MPI_Comm_set_attr on MPI_COMM_SELF: " + mpi_error_text(rc) + ")");
+      throw std::runtime_error("cannot install the MPI_Finalize hook that tells the MPM process about " + host +
+                               " errors (MPI_Comm_set_attr on MPI_COMM_SELF: " + mpi_error_text(rc) + ")");
     }
     g.hook_installed = true;
   }

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <cstdio>
 #include <vector>
 
 #include "coupler/dem_coupling.hpp"
@@ -176,3 +177,76 @@ TEST(DemCoupling, GridOfRunRefusesAdaptiveCellsOfFewGrains) {
 }
 
 }    // namespace
+
+TEST(DemCoupling, ClockKeepsItsTimeAcrossRunsAndStepChanges) {
+  coupler::CouplingClock clock;
+  // before the first run: the host's own time (0.5 s at step 100, dt 1e-3)
+  EXPECT_DOUBLE_EQ(clock.time_of(110, 0.5, 100, 1e-3), 0.51);
+  clock.start_run(120, 0.5, 100, 1e-3);
+  EXPECT_EQ(clock.step, 120);
+  EXPECT_DOUBLE_EQ(clock.time_of(130, 99.0, 0, 1.0), 0.52 + 0.01);    // the host's figures no longer count
+  // a later run with the same step keeps the anchor; one with another step re-anchors at its start
+  clock.start_run(200, 0.0, 0, 1e-3);
+  EXPECT_EQ(clock.step, 120);
+  clock.start_run(200, 0.0, 0, 5e-4);
+  EXPECT_EQ(clock.step, 200);
+  EXPECT_DOUBLE_EQ(clock.time, 0.6);
+  EXPECT_DOUBLE_EQ(clock.time_of(210, 0.0, 0, 5e-4), 0.6 + 10 * 5e-4);
+  // a restart file's record replaces it
+  coupler::RestartRecord r;
+  r.time = 2.0, r.step = 1000;
+  clock.restore(r, 1e-4);
+  EXPECT_DOUBLE_EQ(clock.time_of(1010, 0.0, 0, 1.0), 2.001);
+  clock.start_run(1010, 0.0, 0, 1e-4);    // the restarted run's setup: the same step, the same anchor
+  EXPECT_EQ(clock.step, 1000);
+}
+
+TEST(DemCoupling, NextExchangeIsAnnouncedOnlyWhenCertain) {
+  coupler::ExchangeOutlook o;
+  o.now = 100, o.last_step = 200, o.every = 10;
+  EXPECT_EQ(coupler::next_exchange_step(o), 110);
+  for (bool coupler::ExchangeOutlook::*flag : {&coupler::ExchangeOutlook::forced_output,
+                                               &coupler::ExchangeOutlook::rezone_next,
+                                               &coupler::ExchangeOutlook::restart_file}) {
+    coupler::ExchangeOutlook held = o;
+    held.*flag = true;
+    EXPECT_EQ(coupler::next_exchange_step(held), -1);
+  }
+  o.now = 195;    // the run ends before the next exchange step
+  EXPECT_EQ(coupler::next_exchange_step(o), -1);
+  o.output_frames = true;    // unless its end is an output frame's exchange
+  EXPECT_EQ(coupler::next_exchange_step(o), 200);
+  o.now = 200;
+  EXPECT_EQ(coupler::next_exchange_step(o), -1);
+}
+
+TEST(DemCoupling, RestartRecordFileIsItsSizeThenItsValues) {
+  coupler::RestartRecord r;
+  r.cell = 0.01, r.exchanges = 7, r.every = 5, r.converted = true, r.time = 0.25, r.step = 35;
+  std::FILE *fp = std::tmpfile();
+  ASSERT_NE(fp, nullptr);
+  r.write_file(fp);
+  std::rewind(fp);
+  int size = 0;
+  ASSERT_EQ(std::fread(&size, sizeof(int), 1, fp), 1u);
+  EXPECT_EQ(size, static_cast<int>(coupler::RestartRecord::kValues * sizeof(double)));
+  double values[coupler::RestartRecord::kValues];
+  ASSERT_EQ(std::fread(values, sizeof(double), coupler::RestartRecord::kValues, fp),
+            static_cast<std::size_t>(coupler::RestartRecord::kValues));
+  std::fclose(fp);
+  const coupler::RestartRecord back = coupler::RestartRecord::read(values);
+  EXPECT_EQ(back.exchanges, 7);
+  EXPECT_TRUE(back.converted);
+  EXPECT_DOUBLE_EQ(back.time, 0.25);
+  EXPECT_EQ(back.step, 35);
+}
+
+TEST(DemCoupling, MpmProcessNamesItsHostFromTheHandshake) {
+  EXPECT_EQ(coupler::dem_host_name("LAMMPS 29 Sep 2021"), "LAMMPS");
+  EXPECT_EQ(coupler::dem_host_name("LIGGGHTS 3.8.0"), "LIGGGHTS");
+  EXPECT_EQ(coupler::dem_host_name("LIGGGHTS"), "LIGGGHTS");
+  // a peer that names no known host (the fault campaign's stand-in), or nothing
+  EXPECT_EQ(coupler::dem_host_name("hostile_peer.py (mpi4py)"), coupler::kUnknownDemHost);
+  EXPECT_EQ(coupler::dem_host_name("LAMMPSX 1"), coupler::kUnknownDemHost);
+  EXPECT_EQ(coupler::dem_host_name(""), "the DEM host");
+}

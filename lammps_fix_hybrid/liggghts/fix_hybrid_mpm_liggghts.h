@@ -1,8 +1,9 @@
 /* -*- c++ -*- ----------------------------------------------------------
    fix hybrid/mpm for LIGGGHTS 3.8 (hybrid-granular project): the LIGGGHTS
    adapter of the coupling (the host-neutral core is the coupler library;
-   the LAMMPS adapter is ../fix_hybrid_mpm*.cpp). Built into liggghts_hybrid;
-   see docs/fix_hybrid_mpm.md, "LIGGGHTS host".
+   the LAMMPS adapter is ../fix_hybrid_mpm*.cpp), split as that one is
+   (fix_hybrid_mpm_liggghts_impl.h lists the files). Built into
+   liggghts_hybrid; see docs/fix_hybrid_mpm.md, "LIGGGHTS host".
 ------------------------------------------------------------------------- */
 
 #ifndef LMP_FIX_HYBRID_MPM_LIGGGHTS_H
@@ -25,6 +26,8 @@ struct DemGrains;
 struct GrainArrays;
 struct GrainRules;
 struct EnergyLedger;
+struct CouplingClock;
+class DemRunLog;
 template <int D> class GrainTransfer;
 template <int D> struct PackingTemplate;
 template <int D> struct PlannedGrain;
@@ -44,6 +47,7 @@ class FixHybridMPMLiggghts : public Fix {
   void pre_exchange();
   void end_of_step();
   void post_run();
+  int modify_param(int, char **);
   double compute_scalar();
   double compute_vector(int);
   double memory_usage();
@@ -71,6 +75,7 @@ class FixHybridMPMLiggghts : public Fix {
   std::unique_ptr<coupler::DemSession> session;    // the messages over it
   std::unique_ptr<coupler::StepAck> last_ack;      // of the last exchange or rezone (thermo output)
   std::unique_ptr<coupler::EnergyLedger> ledger;   // the grains' side of the energy ledger
+  std::unique_ptr<coupler::DemRunLog> run_log;     // the coupling's wall time, the rezones' summaries
   std::unique_ptr<coupler::GrainTransfer<3>> transfer;
   std::unique_ptr<coupler::PackingTemplate<3>> packing;
   std::vector<signed char> zones;                  // coupler::Zone per grid cell (same on all ranks)
@@ -79,13 +84,14 @@ class FixHybridMPMLiggghts : public Fix {
   double **atom_stress;                            // per-atom stress*volume stored for the next rezone
   std::vector<int> supported;                      // local atoms with a support acceleration
   char *stress_id;                                 // compute stress/atom for the Love-Weber stress
-  bigint exchanges, coupled_grains, last_step, last_output_step, vector_step, clock_step;
+  bigint exchanges, coupled_grains, last_step, last_output_step, vector_step;
   bool converted, rezone_pending, ledger_started;
   bool timestep_checked;          // the DEM time step was checked (and logged) once
   bool restored, state_loaded;    // restarted after the conversion: the MPM process loads its state
   bigint restart_exchanges;       // exchanges read from a restart file
   int new_grain_mask, rezone_source;
-  double polydispersity, continuum_start, clock_time, clock_dt;
+  double polydispersity, continuum_start;
+  std::unique_ptr<coupler::CouplingClock> clock;    // the coupling's clock (coupler/dem_coupling.hpp)
   double fewest_steps_warned;     // steps per contact at the last warning
   double vector_cache[33];
 
@@ -96,9 +102,15 @@ class FixHybridMPMLiggghts : public Fix {
   void schedule_rezone(int source);
   class Compute *stress_compute() const;    // that compute; an error if it was deleted
   std::vector<std::uint64_t> discrete_cells() const;
+  std::vector<std::uint64_t> mesh_wall_cells();    // cells the mesh walls pass through now (collective)
+  bool mesh_walls_logged = false;
+  std::vector<std::string> insertions_warned;    // fix insert/* whose particles this fix does not couple
+  void check_insertions();
   void rezone(int source);
   bool make_grain(const coupler::PlannedGrain<3> &planned);
   void exchange(bool force_output);
+  void log_rezone_summary(bool end_of_run);    // the rezones since the last thermo output, or of the run
+  void print_timing_breakdown();              // at the end of a run, before LIGGGHTS's own
   double dem_time(bigint step) const;
   double next_exchange_time(bool force_output) const;
   coupler::StepHeader step_header(int kind) const;
@@ -112,7 +124,7 @@ class FixHybridMPMLiggghts : public Fix {
   std::string contact_model() const;    // hooke/stiffness, hooke, hertz or "" (another)
   double material_value(const char *name, bool pair, int type) const;    // fix property/global
   void apply_material();                // keyword material (hooke/stiffness only)
-  double dem_steps_per_contact(std::string &why);    // of the stiffest contact (kBig: not checked)
+  double dem_steps_per_contact(std::string &why);    // of the stiffest contact (coupler::kBig: not checked)
   void check_dem_timestep(const std::string &when);  // warns when the contacts are poorly resolved
   void say(const std::string &text) const;               // rank 0: screen and log file
   [[noreturn]] void fail(const std::string &why) const;    // error->all with "Fix hybrid/mpm: "

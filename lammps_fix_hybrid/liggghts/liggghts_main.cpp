@@ -41,7 +41,7 @@ template struct FixMapAccess<&Modify::fix_map>;
 
 int main(int argc, char **argv)
 {
-  MPI_Comm dem_comm = coupler::start_dem_job(&argc, &argv, "liggghts_hybrid");
+  MPI_Comm dem_comm = coupler::start_dem_job(&argc, &argv, "liggghts_hybrid", "LIGGGHTS");
 
   LAMMPS *liggghts = new LAMMPS(argc, argv, dem_comm);
   (*(liggghts->modify->*fix_map_member()))["hybrid/mpm"] = &FixHybridMPMLiggghts::creator;

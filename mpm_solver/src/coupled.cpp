@@ -139,7 +139,7 @@ void lower_priority() {
 }
 
 /// The end-of-job MPI_Barrier(MPI_COMM_WORLD) (coupler/protocol.hpp), entered by a helper
-/// thread at start-up: `done` turns true once LAMMPS has entered it too, i.e. LAMMPS is ending.
+/// thread at start-up: `done` turns true once the DEM host has entered it too, i.e. it is ending.
 /// Open MPI busy-polls inside MPI_Barrier, so the thread runs with the idle scheduling policy
 /// (SCHED_IDLE; nice 19 if that is refused): it takes only CPU time nobody else wants.
 class EndOfJobBarrier {
@@ -153,7 +153,7 @@ class EndOfJobBarrier {
     if (thread_.joinable()) thread_.join();
   }
   const std::atomic<bool>* flag() const { return &done_; }
-  /// Waits for LAMMPS to reach the barrier; false after `timeout_s` (<= 0: forever).
+  /// Waits for the DEM host to reach the barrier; false after `timeout_s` (<= 0: forever).
   bool wait(double timeout_s) {
     const auto t0 = std::chrono::steady_clock::now();
     while (!done_) {
@@ -182,7 +182,7 @@ std::string type_name(const std::type_info& type) {
 }  // namespace
 
 // Every failure of the continuum goes through here (an HDF5 or Eigen failure, a bug alike), so
-// that none leaves LAMMPS waiting for an answer until its timeout.
+// that none leaves the DEM host waiting for an answer until its timeout.
 std::string describe_exception(const std::exception_ptr& error) {
   try {
     std::rethrow_exception(error);
@@ -200,7 +200,7 @@ std::string describe_exception(const std::exception_ptr& error) {
 namespace {
 
 /// Test hook for tests/test_coupled_launch.py: HYBRID_MPM_TEST_FAULT=<where>@<step> throws once,
-/// at the first exchange at or after LAMMPS step <step>: `exchange` a std::runtime_error while
+/// at the first exchange at or after DEM step <step>: `exchange` a std::runtime_error while
 /// the exchange is computed, `after` one in the work after its acknowledgement, `unknown` a
 /// non-standard exception outside the exchange's own handlers. Unset: does nothing.
 class TestFault {
@@ -288,7 +288,7 @@ template <class T>
 std::vector<std::vector<T>> receive_from_all(coupler::Link& link, int tag, const std::string& what) {
   std::vector<std::vector<T>> lists(static_cast<std::size_t>(link.remote_size()));
   for (int r = 0; r < link.remote_size(); ++r)
-    lists[r] = link.receive(r, {tag}, what + " from LAMMPS rank " + std::to_string(r)).template as_array<T>();
+    lists[r] = link.receive(r, {tag}, what + " from " + link.peer_name() + " rank " + std::to_string(r)).template as_array<T>();
   return lists;
 }
 
@@ -404,7 +404,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         coupler::StepAck ack;
         try {
           if (!deferred_error.empty()) throw UserError(deferred_error);
-          if (built->step_open())  // LAMMPS announces no next exchange before a restart file
+          if (built->step_open())  // the DEM host announces no next exchange before a restart file
             throw UserError("internal: a state request while a substep is open");
           if (h.kind == coupler::kStepSave) built->save(path, h.step, request.exchanges);
           else built->load(path);
@@ -427,8 +427,8 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         continue;
       }
       const auto nodes = receive_from_all<coupler::NodeRecord>(link, coupler::kTagNodes, "the grain node sums" + at);
-      // The exchange's critical path for LAMMPS ends with the acknowledgement; the rest of the
-      // continuum's work (G2P, output, the substeps to the next exchange) overlaps LAMMPS's
+      // The exchange's critical path for the DEM host ends with the acknowledgement; the rest of the
+      // continuum's work (G2P, output, the substeps to the next exchange) overlaps the DEM host's
       // next steps. Its errors are reported at the next exchange.
       coupler::StepAck ack;
       if (!deferred_error.empty()) ack = error_ack(h.step, deferred_error);  // (also: no continuum)
@@ -470,13 +470,15 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         error_line(deferred_error);
         return 2;
       }
-      say(opt, "coupled run finished at LAMMPS step " + std::to_string(f.step) + " after " + std::to_string(steps) +
+      const std::string host = link.peer_name();    // "LAMMPS step 30", "the DEM host's step 30"
+      say(opt, "coupled run finished at " + host + (host == coupler::kUnknownDemHost ? "'s" : "") + " step " +
+                   std::to_string(f.step) + " after " + std::to_string(steps) +
                    " exchange(s); " + std::to_string(built->solver().points().size()) + " material points");
       link.mark(coupler::Link::State::kFinished);
       return 0;
     } else {
       const auto note = m.as<coupler::AbortNote>();
-      error_line("LAMMPS stopped the coupled run after " + std::to_string(steps) +
+      error_line(link.peer_name() + " stopped the coupled run after " + std::to_string(steps) +
                  " exchange(s): " + coupler::get_text(note.reason));
       link.mark(coupler::Link::State::kAborted);
       return 1;
@@ -485,11 +487,11 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
 }
 
 /// Sends an error acknowledgement to every DEM rank, whatever it waits for (in an exchange
-/// LAMMPS takes a StepAck as the MPM process's error), and marks the link aborted.
+/// the DEM host takes a StepAck as the MPM process's error), and marks the link aborted.
 void report_to_all(coupler::Link& link, const coupler::StepAck& ack) {
   for (int r = 0; r < link.remote_size(); ++r) {
     try {  // small enough to go out at once; bounded anyway
-      coupler::send_msg(link.comm(), r, coupler::kTagStepAck, ack, 5.0, "the error report to LAMMPS");
+      coupler::send_msg(link.comm(), r, coupler::kTagStepAck, ack, 5.0, "the error report to " + link.peer_name());
     } catch (const coupler::PeerError&) {
     }
   }
@@ -497,8 +499,8 @@ void report_to_all(coupler::Link& link, const coupler::StepAck& ack) {
 }
 
 /// serve_loop with a last line of defence: a failure its own handlers did not catch is printed
-/// and sent to every DEM rank as an error acknowledgement (whatever LAMMPS waits for in an
-/// exchange, it takes a StepAck as the MPM process's error), so LAMMPS stops at once naming it.
+/// and sent to every DEM rank as an error acknowledgement (whatever the DEM host waits for in an
+/// exchange, it takes a StepAck as the MPM process's error), so the DEM host stops at once naming it.
 template <int D>
 int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions& opt, const std::atomic<bool>* ended) {
   std::int64_t step = -1;
@@ -509,7 +511,7 @@ int serve(coupler::Link& link, const coupler::Hello& hello, const CoupledOptions
   } catch (const coupler::PeerEnded&) {
     throw;
   } catch (const coupler::PeerError& e) {
-    // A malformed, out-of-order or inconsistent message: LAMMPS is still there and waits for an
+    // A malformed, out-of-order or inconsistent message: the DEM host is still there and waits for an
     // answer, so it gets the error now instead of finding out after its reply timeout.
     error_line(e.what());
     report_to_all(link, error_ack(step, e.what()));
@@ -538,7 +540,7 @@ int run_coupled(const CoupledOptions& opt) {
     error_line("the MPI library does not provide MPI_THREAD_MULTIPLE, which --coupled needs");
     MPI_Abort(MPI_COMM_WORLD, 2);
   }
-  // Collective over MPI_COMM_WORLD; LAMMPS's side does the same with kDemColor.
+  // Collective over MPI_COMM_WORLD; the DEM host's side does the same with kDemColor.
   MPI_Comm local = MPI_COMM_NULL;
   MPI_Comm_split(MPI_COMM_WORLD, coupler::kMpmColor, me, &local);
   int nlocal = 1;
@@ -557,6 +559,7 @@ int run_coupled(const CoupledOptions& opt) {
 
   int rc = 0;
   bool finished = false;
+  std::string host = coupler::kUnknownDemHost;    // named by the handshake
   {
     EndOfJobBarrier end_of_job;
     try {
@@ -564,6 +567,7 @@ int run_coupled(const CoupledOptions& opt) {
       const std::string greeting = std::string("mpm_solver ") + coupler::release_version() + " (pid " +
                                    std::to_string(getpid()) + ") ready";
       auto link = coupler::connect_mpm(local, opt.hello_timeout, hello, greeting, &check_hello, end_of_job.flag());
+      host = link->peer_name();
       say(opt, "handshake ok with " + link->peer_info() + " on " + std::to_string(hello.dem_ranks) +
                    " rank(s), release " + coupler::get_text(hello.release) + ": dimension " +
                    std::to_string(hello.dimension) + ", cell " + std::to_string(hello.cell) + " m, dt " +
@@ -573,7 +577,7 @@ int run_coupled(const CoupledOptions& opt) {
                                 : serve<3>(*link, hello, opt, end_of_job.flag());
       finished = rc == 0;
     } catch (const coupler::PeerTimeout& e) {
-      // LAMMPS may be hung: MPI_Finalize would wait for it forever.
+      // the DEM host may be hung: MPI_Finalize would wait for it forever.
       error_line(std::string(e.what()) + "; aborting the MPI job");
       MPI_Abort(MPI_COMM_WORLD, 1);
     } catch (const coupler::PeerEnded& e) {
@@ -586,10 +590,10 @@ int run_coupled(const CoupledOptions& opt) {
       error_line("the MPM process failed: " + describe_exception(std::current_exception()));
       rc = 2;
     }
-    // After Finish LAMMPS may go on with uncoupled runs for as long as it likes; after an
+    // After Finish the DEM host may go on with uncoupled runs for as long as it likes; after an
     // error it reaches the end-of-job barrier within moments.
     if (!end_of_job.wait(finished ? 0.0 : 60.0)) {
-      error_line("LAMMPS did not reach the end of the job within 60 s after the coupling failed; aborting the MPI job");
+      error_line(host + " did not reach the end of the job within 60 s after the coupling failed; aborting the MPI job");
       MPI_Abort(MPI_COMM_WORLD, rc != 0 ? rc : 1);
     }
   }

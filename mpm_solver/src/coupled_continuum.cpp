@@ -508,7 +508,7 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       bool finite = std::isfinite(r.mass);
       for (int a = 0; a < 3; ++a) finite = finite && std::isfinite(r.momentum[a]);
       if (!finite || r.mass < 0)
-        throw UserError("LAMMPS rank " + std::to_string(rank) + " sent a " +
+        throw UserError("DEM rank " + std::to_string(rank) + " sent a " +
                         (finite ? "negative" : "non-finite (NaN or inf)") + " mass or momentum for node " +
                         std::to_string(r.node) + " (mass " + std::to_string(r.mass) +
                         " kg, momentum " + std::to_string(r.momentum[0]) + ", " + std::to_string(r.momentum[1]) + ", " +

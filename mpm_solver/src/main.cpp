@@ -1,5 +1,5 @@
 // mpm_solver: runs a pure-MPM scene from a TOML scene file, or (--coupled) serves as the
-// continuum side of a coupled run with LAMMPS (mpm/coupled.hpp).
+// continuum side of a coupled run with a DEM host, LAMMPS or LIGGGHTS (mpm/coupled.hpp).
 #include <hdf5.h>
 #include <mpi.h>
 #include <omp.h>
@@ -95,8 +95,9 @@ int main(int argc, char** argv) {
   app.add_option("--summary", opt.summary_path, "write run figures (steps, wall time, rate, peak memory) as JSON");
   app.add_flag("--check", opt.check_only, "read the scene, seed it, print its size and stable step, and exit");
   auto* coupled = app.add_flag("--coupled", opt.coupled,
-                               "continuum side of a coupled run with LAMMPS: start in the same mpirun as LAMMPS "
-                               "(tools/hybrid_launch.py); no scene file; see docs/fix_hybrid_mpm.md");
+                               "continuum side of a coupled run with a DEM host (LAMMPS's lmp_hybrid or LIGGGHTS's "
+                               "liggghts_hybrid): start in the same mpirun as it (tools/hybrid_launch.py); no scene "
+                               "file; see docs/fix_hybrid_mpm.md");
   app.add_option("--timeout", opt.peer_timeout,
                  "with --coupled: seconds to wait for the handshake from fix hybrid/mpm (default 600; 0 = forever)")
       ->check(CLI::NonNegativeNumber)
@@ -114,7 +115,7 @@ int main(int argc, char** argv) {
     copt.hello_timeout = opt.peer_timeout;
     copt.quiet = opt.quiet;
     // run_coupled reports its own failures; this is the last line of defence: a failure
-    // escaping it must end the whole MPI job, since LAMMPS would otherwise wait for its timeout.
+    // escaping it must end the whole MPI job, since the DEM host would otherwise wait for its timeout.
     try {
       return mpm::run_coupled(copt);
     } catch (...) {

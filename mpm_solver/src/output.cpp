@@ -30,7 +30,7 @@
 //           velocity       dims x D, node velocity after the grid update, m/s
 //           velocity3      2D only: dims x 3, zero-padded (for XDMF)
 //       grains/            coupled runs only, frames with grains (the DEM side); G grains
-//           id             G, int64, LAMMPS atom id
+//           id             G, int64, the DEM host's atom id
 //           position       G x 3, m (also in 2D, z = 0)
 //           velocity       G x 3, m/s
 //           radius         G, m

@@ -1,4 +1,4 @@
-// The MPM side of a coupled run's restart: <restart>.mpm.h5 next to the LAMMPS restart file.
+// The MPM side of a coupled run's restart: <restart>.mpm.h5 next to the DEM host's restart file.
 //
 // Layout (floating point data float64 in the file as in memory, so values round-trip exactly):
 //
@@ -212,7 +212,7 @@ template <int D>
 ContinuumState<D> load_state(const std::string& path) {
   if (!std::filesystem::exists(path))
     throw UserError("the MPM state file '" + path +
-                    "' does not exist: it is written next to the LAMMPS restart file as <restart>.mpm.h5");
+                    "' does not exist: it is written next to the DEM host's restart file as <restart>.mpm.h5");
   return user_errors([&] {
     const h5::Checker h5(path, kKind);
     const std::string not_state = "'" + path + "' is not an MPM state file";

@@ -231,3 +231,14 @@ TEST(FixOptions, ResolveGridFillsTheCellAndTheOracleDefaults) {
             "keyword 'cell' is needed: the group has no grains to choose the MPM grid cell from");
   EXPECT_EQ(resolve_error(parse("cell 0.01"), 3, 0.0), "(no error)");
 }
+
+// The zone oracle runs after the exchanges of its steps once grains became points, never after the
+// run's last step (both hosts ask FixOptions::oracle_after)
+TEST(FixOptions, OracleRunsAfterItsExchangesButNotAtTheEndOfARun) {
+  const coupler::FixOptions adaptive = parse("cell 0.01 adaptive 100 every 10");
+  EXPECT_TRUE(adaptive.oracle_after(200, 1000, true));
+  EXPECT_FALSE(adaptive.oracle_after(210, 1000, true));     // not an oracle step
+  EXPECT_FALSE(adaptive.oracle_after(200, 1000, false));    // before the conversion
+  EXPECT_FALSE(adaptive.oracle_after(1000, 1000, true));    // the run's last step
+  EXPECT_FALSE(parse("cell 0.01 every 10").oracle_after(200, 1000, true));    // fixed zones
+}

@@ -8,6 +8,7 @@
 #include <mpi.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <functional>
 #include <string>
 #include <vector>
@@ -162,6 +163,9 @@ struct RestartRecord {
   std::int64_t step = 0;
   void write(double out[kValues]) const;
   static RestartRecord read(const double *in);
+  /// The record as a fix writes it into its host's restart file (the size in bytes, then the
+  /// values); the host calls it on its rank 0.
+  void write_file(std::FILE *fp) const;
   /// The run's cell: a cell the grains chose (none on the input, `input_cell` <= 0) is the file's,
   /// the one the run started with (its grains have changed since); a given one is kept, with a
   /// warning if the file's differs ("" if not).
@@ -169,6 +173,49 @@ struct RestartRecord {
   /// An error if the conversion happened and no MPM state is given ("" if fine).
   std::string state_problem(const std::string &mpm_state_path) const;
 };
+/// The coupling's clock: the simulated time the DEM side gives every step it sends the MPM
+/// process. The host's own time at the first run, kept by the fix from then on (neither host keeps
+/// the simulated time in its restart files: the fix's RestartRecord does), re-anchored when the
+/// time step changes between runs. One expression for every step, so a time announced in advance
+/// is the same bits as the time of that step when it comes.
+struct CouplingClock {
+  double time = 0.0;          ///< the time at `step`
+  std::int64_t step = -1;     ///< -1 until the first run's setup
+  double dt = 0.0;            ///< the step since then
+  /// The time of `at`; before the first anchor, the host's: its time `host_time` at step
+  /// `host_step` and its step `host_dt` (LAMMPS's update->atime, atimestep, dt).
+  double time_of(std::int64_t at, double host_time, std::int64_t host_step, double host_dt) const {
+    if (step < 0) return host_time + (at - host_step) * host_dt;
+    return time + (at - step) * dt;
+  }
+  /// At every run's setup (step `now`): anchored at the first, again when the step changed.
+  void start_run(std::int64_t now, double host_time, std::int64_t host_step, double host_dt) {
+    if (step < 0 || dt != host_dt) {
+      time = time_of(now, host_time, host_step, host_dt);
+      step = now;
+    }
+    dt = host_dt;
+  }
+  /// From the fix's record in a restart file, at the host's step now.
+  void restore(const RestartRecord &r, double host_dt) { time = r.time, step = r.step, dt = host_dt; }
+};
+
+/// When an exchange at step `now` knows the next one: the MPM process advances to its time while
+/// the host computes the steps up to it (docs/design.md section 2.3).
+struct ExchangeOutlook {
+  std::int64_t now = 0;
+  std::int64_t last_step = 0;      ///< the run's last step
+  int every = 1;                   ///< keyword every
+  bool forced_output = false;      ///< this is the end-of-run output frame's exchange
+  bool rezone_next = false;        ///< the oracle's rezone follows this exchange
+  bool restart_file = false;       ///< a restart file is written at a step in [now, now + every)
+  bool output_frames = false;      ///< the run writes output frames (its last step is then an exchange)
+};
+/// The step of the next exchange if it is certain now, else -1: not for the end-of-run frame, a
+/// rezone or a restart file before it (the MPM state must then be that of this exchange), nor
+/// when the run ends first, unless its end is an output frame's exchange.
+std::int64_t next_exchange_step(const ExchangeOutlook &o);
+
 /// "fix hybrid/mpm: MPM state saved to|loaded from PATH (N material points)"
 std::string state_line(int kind, const std::string &path, std::int64_t points);
 
@@ -187,8 +234,9 @@ std::string material_line(const FixOptions &options);
 /// MPI_COMM_WORLD split by colour (kDemColor; mpm_solver takes kMpmColor, so the host never
 /// sees the MPM ranks; run alone the split is a no-op), the MPI_Finalize hook installed with
 /// the end-of-job barrier left to it (the hosts' Error::all ends in MPI_Finalize + exit(1)).
-/// Returns the DEM ranks' communicator; aborts the job naming `program` on a failure.
-MPI_Comm start_dem_job(int *argc, char ***argv, const char *program);
+/// Returns the DEM ranks' communicator; aborts the job naming `program` on a failure. `host`
+/// names the DEM host to the MPM process ("LAMMPS", "LIGGGHTS").
+MPI_Comm start_dem_job(int *argc, char ***argv, const char *program, const std::string &host);
 /// Its normal end: the MPM process is told if no fix ever connected (`unconnected`: why), then
 /// the end-of-job barrier (coupler/protocol.hpp) and MPI_Finalize.
 void end_dem_job(MPI_Comm dem_comm, const std::string &unconnected);

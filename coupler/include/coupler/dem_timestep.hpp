@@ -27,6 +27,10 @@ struct HookeanContact {
 inline constexpr double kSafeStepsPerContact = 20;
 inline constexpr double kWarnStepsPerContact = 10;
 inline constexpr double kUnstableStepsPerContact = M_PI / 2;
+/// The DEM side's "unknown" and "none yet" (LAMMPS's BIG): the steps per contact where the check
+/// does not know the contact time (a pair style or contact model it cannot check, no grains), and
+/// the start of the hosts' minima over their grains. Every host uses this one constant.
+inline constexpr double kBig = 1.0e20;
 
 /// Contact time of the stiffest mode of the pair: the damped normal oscillation,
 /// tc = pi / sqrt(kn/m_eff - gamman^2/4), or the tangential one, whose stiffness the rotation
@@ -89,7 +93,7 @@ std::string poor_step_warning(double dt, const std::string &when, const std::str
 /// The velocity agreement's relaxation time (docs/design.md section 5.2): keyword relax's
 /// `relax_time` if given (>= 0), else half the stiffest contact's duration, the time over which
 /// grains in contact equalise their velocities: `steps_per_contact` DEM steps of `dt` (10 steps
-/// where the contact time is unknown, steps_per_contact >= 1e19).
+/// where the contact time is unknown, steps_per_contact >= kBig).
 double agreement_time(double relax_time, double steps_per_contact, double dt);
 
 /// The warning for a pair style the check does not know.

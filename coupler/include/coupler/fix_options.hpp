@@ -52,6 +52,12 @@ struct FixOptions {
   RezoneLog rezone_log = RezoneLog::kSummary;
 
   bool adaptive() const { return adapt_every > 0; }
+  /// Whether the zone oracle runs right after the exchange at `step` (adaptive zones, after the
+  /// conversion, an oracle step, and not the run's last step `last_step`: the next run's setup
+  /// reorders the atoms).
+  bool oracle_after(std::int64_t step, std::int64_t last_step, bool converted) const {
+    return adaptive() && converted && step % adapt_every == 0 && step < last_step;
+  }
   /// Whether the coupling splits grains (continuum regions or adaptive zones).
   bool splits() const { return !continuum_regions.empty() || adaptive(); }
   /// The continuum's container face (side 0 lo, 1 hi) on an axis: the keyword's, else the box's.
@@ -108,5 +114,10 @@ std::string grid_of_run(FixOptions &options, int dimension, std::int64_t grains,
 
 /// rezone_log's value (OptionError for another).
 RezoneLog rezone_log_option(const std::string &value);
+
+/// A keyword a host's fix_modify may change between runs: rezone_log and the zone oracle's
+/// (set_oracle_option, then check_oracle_options). False if `key` is none of them; OptionError
+/// for a bad value.
+bool modify_option(FixOptions &options, const std::string &key, const std::string &value, int dimension);
 
 }    // namespace coupler

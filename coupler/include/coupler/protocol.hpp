@@ -531,7 +531,14 @@ std::unique_ptr<Link> connect_mpm(MPI_Comm local, double hello_timeout_s, Hello&
 ///     finished) and, if the host program leaves the end-of-job barrier to the hook
 ///     (set_world_barrier_by_hook) and it has not happened yet, enters it.
 /// Idempotent; later calls only refresh the communicator data.
-void install_dem_finalize_hook(MPI_Comm local);
+/// `host` names the DEM host in what the MPM process is told ("LAMMPS", "LIGGGHTS").
+void install_dem_finalize_hook(MPI_Comm local, const std::string& host);
+
+/// What the MPM process calls its DEM host: the program the handshake's host text names
+/// ("LAMMPS 29 Sep 2021" -> "LAMMPS", "LIGGGHTS 3.8.0" -> "LIGGGHTS"), else kUnknownDemHost (a
+/// peer that names no known host, or before the handshake).
+inline constexpr const char* kUnknownDemHost = "the DEM host";
+std::string dem_host_name(const std::string& host_text);
 /// lmp_hybrid: its LAMMPS library (Debian's, without exceptions) calls MPI_Finalize directly
 /// on errors, so the hook must enter the end-of-job MPI_COMM_WORLD barrier. A stock LAMMPS
 /// main enters it itself (default: false).

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -72,6 +73,33 @@ inline std::array<std::size_t, 3> zone_counts(const std::vector<std::int8_t>& zo
   std::array<std::size_t, 3> n{0, 0, 0};
   for (auto z : zones) ++n[static_cast<std::size_t>(z)];
   return n;
+}
+
+/// The grid cells a wall made of triangles passes through (LIGGGHTS's mesh walls, `fix
+/// mesh/surface`): `vertices` holds 9 coordinates per triangle. Each triangle is sampled at under
+/// a quarter of a cell, so a cell it only clips by less than that may be left out (the oracle's
+/// band keeps the continuum farther away than that); cells off the grid are left out. Sorted,
+/// each cell once. The oracle keeps them discrete, as it keeps the cells of discrete regions.
+inline std::vector<std::uint64_t> cells_of_triangles(const GridGeometry<3>& grid, const std::vector<double>& vertices) {
+  using Vec3 = Eigen::Vector3d;
+  std::vector<std::uint64_t> cells;
+  const Eigen::Vector3i last = grid.dims.array() - 2;    // the highest cell index per axis
+  for (std::size_t t = 0; t + 9 <= vertices.size(); t += 9) {
+    const Vec3 a(vertices[t], vertices[t + 1], vertices[t + 2]), b(vertices[t + 3], vertices[t + 4], vertices[t + 5]),
+        c(vertices[t + 6], vertices[t + 7], vertices[t + 8]);
+    if (!a.allFinite() || !b.allFinite() || !c.allFinite()) continue;
+    const double longest = std::max({(b - a).norm(), (c - a).norm(), (c - b).norm()});
+    const int n = 1 + static_cast<int>(std::ceil(longest / (0.25 * grid.dx)));
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; i + j <= n; ++j) {
+        const Vec3 x = a + (b - a) * (static_cast<double>(i) / n) + (c - a) * (static_cast<double>(j) / n);
+        const Eigen::Vector3i cell = cell_of<3>(grid, x);
+        if ((cell.array() >= 0).all() && (cell.array() <= last.array()).all()) cells.push_back(cell_index<3>(grid, cell));
+      }
+  }
+  std::sort(cells.begin(), cells.end());
+  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+  return cells;
 }
 
 }  // namespace coupler

@@ -46,7 +46,7 @@ class CoupledContinuum {
 
   /// Advances the continuum to `time` in stable substeps and stops inside the last one,
   /// after its grid update: the grid then holds the node velocities at `time`. Does nothing
-  /// if it already stands there (advanced ahead while LAMMPS computed its steps).
+  /// if it already stands there (advanced ahead while the DEM host computed its steps).
   void advance_to(double time);
   /// The velocity agreement on the nodes the DEM ranks sent (NodeRecord lists, one per
   /// rank); returns the answers in the same order. Call between advance_to and complete_step.

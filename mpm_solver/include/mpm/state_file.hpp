@@ -1,5 +1,5 @@
 #pragma once
-// The exact state of the MPM side of a coupled run, saved next to a LAMMPS
+// The exact state of the MPM side of a coupled run, saved next to the DEM host's
 // restart file (<restart>.mpm.h5) and read back so that the run continues bit
 // for bit. The layout of the HDF5 file is described in state_file.cpp.
 #include <cstdint>
@@ -21,7 +21,7 @@ struct ContinuumState {
   double time = 0;                           ///< DEM time of the continuum's state, s
   double solver_time = 0;                    ///< the MPM solver's own clock, s
   long solver_steps = 0;                     ///< MPM steps taken so far
-  std::int64_t dem_step = 0;                 ///< LAMMPS step at which it was saved
+  std::int64_t dem_step = 0;                 ///< DEM step at which it was saved
   std::int64_t exchanges = 0;
   double cell = 0;                           ///< grid cell size, m
   double box_lo[3] = {0, 0, 0}, box_hi[3] = {0, 0, 0};
