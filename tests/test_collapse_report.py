@@ -8,7 +8,7 @@ Measured (this machine): surface error: noise floor 1.4 % of H0 (runout -0.2 %),
 2.4 %, adaptive 7.1 %, MPM mu(I) 3.4 %, Drucker-Prager 6.9 %; kinetic-energy history error (over
 the reference's peak): floor 1.6 %, hybrid fixed 3.1 %, adaptive 23.7 %, MPM mu(I) 14.6 %,
 Drucker-Prager 18.9 %. A second, low column (a = 0.5) runs a shorter matrix below. The
-full-size reports (a = 2 and 0.5, each with its 3D slab section: LAMMPS, LIGGGHTS, hybrid) are
+full-size reports (a = 2 and 0.5, each with its 3D slab section: LAMMPS, LIGGGHTS, the hybrid on each host) are
 bench/collapse_report.sh, committed in docs/results/collapse_report*/.
 """
 from __future__ import annotations
@@ -138,3 +138,25 @@ def test_low_column_reference_hybrid_and_mpm(low_report):
     assert abs(hybrid.runout_error) < 0.10 and hybrid.surface_error < 0.05
     assert "points" in hybrid.size and hybrid.height > 0.9 * LOW_ASPECT   # the top at the wall stays (0.96 H0)
     assert abs(mpm.runout_error) < 0.30 and mpm.surface_error < 0.15
+
+
+def test_slab_section_shows_each_hybrid_against_its_own_host():
+    """The 3D slab section (--liggghts) lists the hybrid on each DEM host, and each hybrid's
+    runout error against its own host's pure DEM beside the error against LAMMPS."""
+    from types import SimpleNamespace
+
+    from collapse_report import SLAB_CODES, make_report
+    runout = {"lammps": 2.26, "liggghts": 2.11, "hybrid": 2.10, "hybrid_liggghts": 2.02}
+    host = {"lammps": "lammps", "liggghts": "liggghts", "hybrid": "lammps", "hybrid_liggghts": "liggghts"}
+    runs = {code: dict(runout=r, runout_error=r / runout["lammps"] - 1, surface_error=0.01, collapse_wall=10.0,
+                       collapse_steps=1000, speedup=1.0, grains=2756,
+                       host_error=r / runout[host[code]] - 1) for code, r in runout.items()}
+    assert set(runs) == set(SLAB_CODES)
+    codes = dict(aspect=2.0, width=0.03, thickness=0.012, difference=0.07, runs=runs)
+    ref = SimpleNamespace(label="DEM", runout=3.5, runout_error=0.0, surface_error=0.0, kinetic_error=0.0,
+                          height=0.4, size=5000, steps=1, extra={}, wall=1.0)
+    section = make_report([ref], 2.0, 0.1, 2, codes).split("## 3D slab")[1]
+    row = next(line for line in section.splitlines() if "LIGGGHTS as the DEM host" in line).split("|")
+    assert row[3].strip() == "-10.6%" and row[4].strip() == "-4.3%", row
+    row = next(line for line in section.splitlines() if "(hybrid_3d.lmp)" in line).split("|")
+    assert row[3].strip() == row[4].strip() == "-7.1%", row
