@@ -5,6 +5,7 @@
 ------------------------------------------------------------------------- */
 
 #include "fix_hybrid_mpm_liggghts_impl.h"
+#include "liggghts_private.h"
 
 #include "atom.h"
 #include "comm.h"
@@ -26,23 +27,20 @@ using namespace LAMMPS_NS;
 using namespace FixConst;
 using namespace LAMMPS_NS::liggghts_hybrid;
 
-namespace {
-
 // LIGGGHTS 3.8 keeps Output's restart schedule private; the announced time of the next exchange
-// must not pass a restart file (its MPM state is that of the restart step): the members are
-// reached as liggghts_main.cpp reaches the style map, through explicit template instantiation
-using RestartFlagMember = bool Output::*;
-using NextRestartMember = bigint Output::*;
-template <RestartFlagMember Flag, NextRestartMember Next>
-struct OutputRestartAccess {
-  friend RestartFlagMember output_restart_flag() { return Flag; }
-  friend NextRestartMember output_next_restart() { return Next; }
+// must not pass a restart file (its MPM state is that of the restart step)
+namespace LAMMPS_NS::liggghts_private {
+struct OutputRestartFlag {
+  using type = bool Output::*;
+  friend type member(OutputRestartFlag);
 };
-RestartFlagMember output_restart_flag();
-NextRestartMember output_next_restart();
-template struct OutputRestartAccess<&Output::restart_flag, &Output::next_restart>;
-
-}    // namespace
+struct OutputNextRestart {
+  using type = bigint Output::*;
+  friend type member(OutputNextRestart);
+};
+template struct Reach<OutputRestartFlag, &Output::restart_flag>;
+template struct Reach<OutputNextRestart, &Output::next_restart>;
+}    // namespace LAMMPS_NS::liggghts_private
 
 /* ----------------------------------------------------------------------
    the coupling's clock (LIGGGHTS's own time at the first run) and steps
@@ -71,8 +69,8 @@ double FixHybridMPMLiggghts::next_exchange_time(bool force_output) const
   o.now = update->ntimestep, o.last_step = update->laststep, o.every = opt->every;
   o.forced_output = force_output;
   o.rezone_next = opt->oracle_after(o.now, update->laststep, converted);
-  const bigint restart_step = output->*output_next_restart();
-  o.restart_file = output->*output_restart_flag() && restart_step >= o.now && restart_step < o.now + opt->every;
+  const bigint restart_step = output->*member(liggghts_private::OutputNextRestart{});
+  o.restart_file = output->*member(liggghts_private::OutputRestartFlag{}) && restart_step >= o.now && restart_step < o.now + opt->every;
   o.output_frames = opt->continuum.output_every > 0;
   const bigint next = coupler::next_exchange_step(o);
   return next < 0 ? -1.0 : dem_time(next);

@@ -6,6 +6,7 @@
 ------------------------------------------------------------------------- */
 
 #include "fix_hybrid_mpm_liggghts_impl.h"
+#include "liggghts_private.h"
 
 #include "abstract_mesh.h"
 #include "atom.h"
@@ -40,21 +41,16 @@ using namespace LAMMPS_NS;
 using namespace FixConst;
 using namespace LAMMPS_NS::liggghts_hybrid;
 
-namespace {
-
 // LIGGGHTS 3.8's thermo calls atoms lost whenever their count fell since its last output
 // (Thermo::last_natoms, private), so a rezone that turns grains into points would stop a deck
-// with `thermo_modify lost error`: the fix tells it the count it changed itself, the member
-// reached through explicit template instantiation as liggghts_main.cpp reaches the style map
-using LastNatomsMember = bigint Thermo::*;
-template <LastNatomsMember Member>
-struct ThermoLastNatomsAccess {
-  friend LastNatomsMember thermo_last_natoms() { return Member; }
+// with `thermo_modify lost error`: the fix tells it the count it changed itself
+namespace LAMMPS_NS::liggghts_private {
+struct ThermoLastNatoms {
+  using type = bigint Thermo::*;
+  friend type member(ThermoLastNatoms);
 };
-LastNatomsMember thermo_last_natoms();
-template struct ThermoLastNatomsAccess<&Thermo::last_natoms>;
-
-}    // namespace
+template struct Reach<ThermoLastNatoms, &Thermo::last_natoms>;
+}    // namespace LAMMPS_NS::liggghts_private
 
 /* ----------------------------------------------------------------------
    zone of every grid cell from the continuum regions (same on all ranks)
@@ -279,7 +275,7 @@ void FixHybridMPMLiggghts::rezone(int source)
   if (!too_many.empty()) fail(too_many);
   atom->natoms += counts.made - counts.deleted;
   if (output != nullptr && output->thermo != nullptr)    // not lost: made and deleted by the fix
-    output->thermo->*thermo_last_natoms() += counts.made - counts.deleted;
+    output->thermo->*member(liggghts_private::ThermoLastNatoms{}) += counts.made - counts.deleted;
   if (counts.made > 0 && atom->tag_enable) atom->tag_extend();
   if (atom->map_style) {
     atom->map_init();

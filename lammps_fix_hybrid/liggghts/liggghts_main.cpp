@@ -8,9 +8,9 @@
 //   LIGGGHTS stops on an error (its Error::all calls MPI_Finalize + exit(1)), and the job ends
 //   with one MPI_Barrier(MPI_COMM_WORLD) before MPI_Finalize (coupler/protocol.hpp).
 // LIGGGHTS 3.8 keeps its style map Modify::fix_map private and has no plugin loader: the map is
-// reached through the one access C++ allows to a private member, the address taken in an
-// explicit template instantiation.
+// reached through the one access C++ allows to a private member (liggghts_private.h).
 #include "fix_hybrid_mpm_liggghts.h"
+#include "liggghts_private.h"
 #include "input.h"
 #include "lammps.h"
 #include "modify.h"
@@ -24,27 +24,20 @@
 
 using namespace LAMMPS_NS;
 
-namespace {
-
-using FixCreatorFn = Fix *(*)(LAMMPS *, int, char **);
-using FixMapMember = std::map<std::string, FixCreatorFn> *Modify::*;
-
-// explicit instantiation may name private members; the friend function hands the pointer out
-template <FixMapMember Member>
-struct FixMapAccess {
-  friend FixMapMember fix_map_member() { return Member; }
+namespace LAMMPS_NS::liggghts_private {
+struct ModifyFixMap {
+  using type = std::map<std::string, Fix *(*)(LAMMPS *, int, char **)> *Modify::*;
+  friend type member(ModifyFixMap);
 };
-FixMapMember fix_map_member();
-template struct FixMapAccess<&Modify::fix_map>;
-
-}    // namespace
+template struct Reach<ModifyFixMap, &Modify::fix_map>;
+}    // namespace LAMMPS_NS::liggghts_private
 
 int main(int argc, char **argv)
 {
   MPI_Comm dem_comm = coupler::start_dem_job(&argc, &argv, "liggghts_hybrid", "LIGGGHTS");
 
   LAMMPS *liggghts = new LAMMPS(argc, argv, dem_comm);
-  (*(liggghts->modify->*fix_map_member()))["hybrid/mpm"] = &FixHybridMPMLiggghts::creator;
+  (*(liggghts->modify->*member(liggghts_private::ModifyFixMap{})))["hybrid/mpm"] = &FixHybridMPMLiggghts::creator;
   liggghts->input->file();
   delete liggghts;
 
