@@ -145,13 +145,14 @@ def test_slab_section_shows_each_hybrid_against_its_own_host():
     runout error against its own host's pure DEM beside the error against LAMMPS."""
     from types import SimpleNamespace
 
-    from collapse_report import SLAB_CODES, make_report
+    from collapse_report import make_report
+    from hgtools.runner import CODES
     runout = {"lammps": 2.26, "liggghts": 2.11, "hybrid": 2.10, "hybrid_liggghts": 2.02}
     host = {"lammps": "lammps", "liggghts": "liggghts", "hybrid": "lammps", "hybrid_liggghts": "liggghts"}
     runs = {code: dict(runout=r, runout_error=r / runout["lammps"] - 1, surface_error=0.01, collapse_wall=10.0,
                        collapse_steps=1000, speedup=1.0, grains=2756,
                        host_error=r / runout[host[code]] - 1) for code, r in runout.items()}
-    assert set(runs) == set(SLAB_CODES)
+    assert set(runs) == set(CODES)
     codes = dict(aspect=2.0, width=0.03, thickness=0.012, difference=0.07, runs=runs)
     ref = SimpleNamespace(label="DEM", runout=3.5, runout_error=0.0, surface_error=0.0, kinetic_error=0.0,
                           height=0.4, size=5000, steps=1, extra={}, wall=1.0)

@@ -157,8 +157,6 @@ def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: 
     raise ValueError(f"unknown run '{name}' (known: {', '.join(ALL_RUNS)})")
 
 
-SLAB_CODES = ("lammps", "liggghts", "hybrid", "hybrid_liggghts")
-HOST_DEM = {"lammps": "lammps", "liggghts": "liggghts", "hybrid": "lammps", "hybrid_liggghts": "liggghts"}
 SLAB_ROWS = 5             # the 3D slab's thickness in floor rows of 1.2 d (6 d: 2.4 MPM cells of 2.5 d)
 
 
@@ -173,7 +171,7 @@ def slab_3d(aspect: float, np_: int, out: Path) -> dict:
     width = round(0.03 * (2.0 / aspect) ** 0.5, 4)
     runs = {code: run3d(code=code, aspect=aspect, width=width, thickness_d=SLAB_ROWS, np_=np_,
                         out=out / f"slab_{code}", extra_vars={"walls": 1}, timeout=3600)
-            for code in SLAB_CODES}
+            for code in runner.CODES}
     ref = runs["lammps"]
     ref_surface = tuple(np.array(ref.profile).T)
     table = {}
@@ -182,7 +180,7 @@ def slab_3d(aspect: float, np_: int, out: Path) -> dict:
                            surface_error=surface_error(tuple(np.array(res.profile).T), ref_surface, aspect * width),
                            collapse_wall=res.collapse_wall, collapse_steps=res.collapse_steps,
                            speedup=ref.collapse_wall / res.collapse_wall, grains=res.grains,
-                           host_error=(res.runout - runs[HOST_DEM[code]].runout) / runs[HOST_DEM[code]].runout)
+                           host_error=res.runout / runs[runner.host_dem(code)].runout - 1)
     return dict(aspect=aspect, width=width, thickness=ref.thickness, runs=table,
                 difference=abs(ref.runout - runs["liggghts"].runout) / (0.5 * (ref.runout + runs["liggghts"].runout)))
 

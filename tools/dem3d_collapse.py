@@ -29,10 +29,9 @@ from column_collapse import published_runout_range
 from hgtools import cli, logs
 from hgtools.collapse import Deposit, measure
 from hgtools.grains import FLOOR_SPACING, LATTICE_SPACING, jittered, pour_lattice, read_dump, slab_floor, write_spheres
-from hgtools.runner import CODES, Forms, workdir
+from hgtools.runner import CODES, HYBRID_CODES, Forms, workdir
 
 FORMS = Forms("column_collapse", hybrid_liggghts="hybrid_3d.liggghts")
-HYBRIDS = ("hybrid", "hybrid_liggghts")
 
 
 def domain_length(aspect: float, width: float, d: float) -> float:
@@ -103,10 +102,10 @@ def run(code: str = "lammps", aspect: float = 2.0, width: float = 0.03, d: float
     done = FORMS.run(code, variables, out / "log.txt", {"walls": 1, **(extra_vars or {})}, np_=np_, exe=exe,
                      timeout=timeout)
     log = done.check("in the collapse", out / "final.dump")
-    walls = code in HYBRIDS or int(variables.get("walls", 0)) == 1
+    walls = code in HYBRID_CODES or int(variables.get("walls", 0)) == 1
     res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d,
                   None if walls else geo["thickness"])
-    if code in HYBRIDS:    # the continuum's surface too (its points are in the frames)
+    if code in HYBRID_CODES:    # the continuum's surface too (its points are in the frames)
         from column_collapse import combine_surfaces, points_surface
         from mpm_results import load_run
         points = load_run(out / "frames").frame(-1)["position"][:, :2]

@@ -34,7 +34,7 @@ from hgtools.discharge import Discharge, measure
 from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, covered_fraction, grains_needed, jittered, max_overlap,
                             pour_margin, read_data, write_spheres)
 from hgtools.laws import BEVERLOO_C3D, BEVERLOO_K, G, beverloo_3d
-from hgtools.runner import CODES, Forms, workdir
+from hgtools.runner import CODES, HYBRID_CODES, Forms, workdir
 
 FORMS = Forms("silo", hybrid_liggghts="hybrid_3d.liggghts")
 DEFAULTS = dict(width=0.03, height=0.04, orifice=0.012, d=0.002, rho=2500.0, tout=0.01)
@@ -159,7 +159,7 @@ def run(code: str = "lammps", width: float = DEFAULTS["width"], height: float = 
     mo = re.search(r"^DEM3D open: step \S+, grains (\d+), mass (\S+) kg", text, re.M)
     n0, mass0 = int(mo.group(1)), float(mo.group(2))
     figures, (n_in, n_fall, n_del, n_all) = measure(out / "discharge.dat", mass0)
-    if code not in ("hybrid", "hybrid_liggghts"):
+    if code not in HYBRID_CODES:
         lost = int(max(np.max(n0 - n_all - n_del), np.max(np.abs(n_all - n_in - n_fall)),
                        round(logs.number(r"^DEM3D end:.* lost (\S+)", text))))
     else:  # grains become points and back: the counts do not balance (the fix's totals do)

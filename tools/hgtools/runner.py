@@ -33,6 +33,13 @@ TOOLS = Path(__file__).resolve().parent.parent
 REPO = TOOLS.parent
 SOLVER = Path(os.environ.get("HYBRID_BUILD_DIR", REPO / "build")) / "mpm_solver" / "mpm_solver"
 CODES = ("lammps", "liggghts", "hybrid", "hybrid_liggghts")
+HYBRID_CODES = ("hybrid", "hybrid_liggghts")
+
+
+def host_dem(code: str) -> str:
+    """The pure-DEM code of `code`'s DEM host: what a hybrid is compared with on its own host."""
+    return "liggghts" if code in ("liggghts", "hybrid_liggghts") else "lammps"
+
 EXECUTABLES = {"lammps": "lmp", "liggghts": "liggghts"}
 
 
@@ -93,8 +100,8 @@ def command(code: str, deck: Path, variables: dict, log: Path, np_: int = 1, exe
     args = ["-log", str(log), "-screen", "none"]
     for k, v in variables.items():
         args += ["-var", k, str(v)]
-    if code in ("hybrid", "hybrid_liggghts"):
-        host = ["--host", "liggghts"] if code == "hybrid_liggghts" else []
+    if code in HYBRID_CODES:
+        host = ["--host", "liggghts"] if host_dem(code) == "liggghts" else []
         return [sys.executable, str(TOOLS / "hybrid_launch.py"), *host, "-np", str(np_), str(deck), *args]
     if code not in EXECUTABLES:
         raise ValueError(f"unknown code {code!r} (known: {', '.join(CODES)})")
@@ -140,7 +147,7 @@ class Forms:
     hybrid_liggghts: str | None = None
 
     def deck(self, code: str) -> Path:
-        name = self.liggghts if code in ("liggghts", "hybrid_liggghts") else self.lammps
+        name = self.liggghts if host_dem(code) == "liggghts" else self.lammps
         return REPO / "input_decks" / self.scene / name
 
     def hybrid_deck(self, code: str = "hybrid") -> Path:
@@ -152,7 +159,7 @@ class Forms:
     def variables(self, code: str, variables: dict, hybrid_vars: dict | None = None) -> dict:
         """The deck variables of `code`: the hybrid twin's (hybrid 1, hdeck, then hybrid_vars, which
         may override them) added for the hybrids."""
-        if code not in ("hybrid", "hybrid_liggghts"):
+        if code not in HYBRID_CODES:
             return dict(variables)
         if code == "hybrid_liggghts":    # always its own include (an error for a scene without one)
             twin = {"hybrid": 1, "hdeck": self.hybrid_deck(code)}
