@@ -30,16 +30,20 @@ Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collap
 `hybrid 2`, `hcell 0`): the DEM and the adaptive hybrid collapse from the same cached column to
 rest; error = the final surface's RMS over H0, and the runout's relative error.
 
-Usage: bench/scale_speed.py [--np 2] [--sizes 40,90,160] [--collapse-sizes 50,100,200] [--keep]
-Writes bench/results/scale_speed.json (a list `rows`), scale_speed.md and scale_speed.png.
+Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--collapse-sizes 50,100,200] [--keep]
+       bench/scale_speed.py --render     (the report and plot again from the JSON)
+Writes bench/results/scale_speed.json (a list `rows`), scale_speed.md and scale_speed.png; the notes
+below the marker in scale_speed.md are kept (hgtools.report).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import sys
 from datetime import datetime, timezone
+from itertools import product
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +54,7 @@ from column_collapse import combine_surfaces, points_surface, surface_error  # n
 from dem_collapse import run as collapse  # noqa: E402
 from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
 from hgtools.logs import thermo_rows  # noqa: E402
+from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
 
 RESULTS = REPO / "bench" / "results"
@@ -173,14 +178,15 @@ def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Pa
 
 
 def table(rows: list[dict]) -> list[str]:
-    out = ["| scene | W or L0, H (d) | grains | continuum share (mean) | most points | DEM wall s | hybrid wall s | "
-           "speedup (wall) | speedup (CPU time) | predicted | error | runout error | coupling s (MPM wait, rezones) |",
-           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    out = ["| scene | W or L0, H (d) | grains | LAMMPS ranks, MPM threads | continuum share (mean) | most points | "
+           "DEM wall s | hybrid wall s | speedup (wall) | speedup (CPU time) | predicted | error | runout error | "
+           "coupling s (MPM wait, rezones) |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
-        out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']} | {r['grains']} | {r['continuum_share']:.0%} | "
+        out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
                    f"{cpu} | {r['predicted_speedup']:.2f}x | {error} | {runout} | {r['coupling_s']:.1f} "
                    f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) |")
@@ -192,18 +198,18 @@ def plot(rows: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for scene, marker in (("silo_2d", "o"), ("collapse_2d", "^")):
-        mine = sorted((r for r in rows if r["scene"] == scene), key=lambda r: r["grains"])
+    for (scene, marker), cores in product((("silo_2d", "o"), ("collapse_2d", "^")), sorted({r["cores"] for r in rows})):
+        mine = sorted((r for r in rows if r["scene"] == scene and r["cores"] == cores), key=lambda r: r["grains"])
         if not mine:
             continue
         g = [r["grains"] for r in mine]
-        line, = ax.plot(g, [r["speedup"] for r in mine], marker + "-", label=f"{scene} measured")
+        line, = ax.plot(g, [r["speedup"] for r in mine], marker + "-", label=f"{scene}, {cores} core(s), measured")
         ax.plot(g, [r["predicted_speedup"] for r in mine], marker + "--", color=line.get_color(), alpha=0.6,
-                label=f"{scene} cost model")
+                label=f"{scene}, {cores} core(s), cost model")
         for r in mine:
             note = f"rate {r['error']:+.1%}" if scene.startswith("silo") else f"surface {r['error']:.1%}"
             ax.annotate(note, (r["grains"], r["speedup"]), textcoords="offset points", xytext=(4, 6), fontsize=8)
-            bx.plot(r["share_t"], r["share"], label=f"{scene}, {r['grains']} grains")
+            bx.plot(r["share_t"], r["share"], label=f"{scene}, {r['grains']} grains, {cores} core(s)")
     ax.axhline(1.0, color="grey", lw=0.8)
     ax.set(xscale="log", xlabel="grains", ylabel="DEM wall time / hybrid wall time")
     ax.legend(fontsize=8)
@@ -213,42 +219,57 @@ def plot(rows: list[dict], path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
+def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
+    """The report (its notes kept) and the plot of these rows."""
+    plot(rows, out.with_suffix(".png"))
+    text = ["# Hybrid against pure LAMMPS DEM as the scene grows", "",
+            (f"`{command}`, " if command else "") + f"{stamp} (each row's date in the JSON). DEM and hybrid of a row run side by side on the "
+            "same LAMMPS ranks, the hybrid's MPM process (its threads) working while LAMMPS waits; a 2-core machine "
+            "that may be shared (compare ratios).", "",
+            *table(rows), "", "![speedup against size](scale_speed.png)", ""]
+    write_report(out, "\n".join(text))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--np", type=int, default=2, dest="np_", help="LAMMPS ranks, DEM and hybrid alike")
-    ap.add_argument("--threads", type=int, default=2, help="the MPM process's OpenMP threads (for the cost model)")
+    ap.add_argument("--threads", type=int, default=2,
+                    help="the MPM process's OpenMP threads (OMP_NUM_THREADS of the runs, and the cost model's)")
     ap.add_argument("--sizes", default="40,90,160", help="silo widths in grain diameters ('' = none)")
     ap.add_argument("--collapse-sizes", default="50,100,200", help="collapse widths L0 in grain diameters ('' = none)")
     ap.add_argument("--tdis", type=float, default=0.4, help="the silo's discharge time after the opening, s")
     ap.add_argument("--seed", type=int, default=12345)
     ap.add_argument("--hcell", default="0", help="the hybrid's cell, m, or 0 (the fix's, from the grains)")
     ap.add_argument("--keep", action="store_true",
-                    help="keep the rows of other (scene, size) pairs already in the JSON (each row has its date)")
+                    help="keep the rows of other (scene, size, cores) already in the JSON (each row has its date)")
+    ap.add_argument("--render", action="store_true",
+                    help="run nothing: rewrite the report and the plot from the JSON (after editing the notes)")
     ap.add_argument("--work", type=Path, default=REPO / "runs" / "scale_speed")
     ap.add_argument("--out", type=Path, default=RESULTS / "scale_speed.md")
     a = ap.parse_args()
+    path = a.out.with_suffix(".json")
+    if a.render:
+        saved = json.loads(path.read_text())
+        write(saved["rows"], saved.get("command", ""), saved["date"], a.out)
+        return 0
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    os.environ["OMP_NUM_THREADS"] = str(a.threads)    # the MPM process runs with what the model assumes
     sizes = [int(n) for n in a.sizes.split(",") if n]
     rows = [run_silo(n, a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work) for n in sizes]
     rows += [run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)
              for n in (int(n) for n in a.collapse_sizes.split(",") if n)]
     for r in rows:
         r["date"] = stamp
-    path = a.out.with_suffix(".json")
     if a.keep and path.exists():
-        new = {(r["scene"], r["width_d"]) for r in rows}
+        key = lambda r: (r["scene"], r["width_d"], r["cores"])    # noqa: E731
+        new = {key(r) for r in rows}
         old = [dict(r, date=r.get("date", json.loads(path.read_text())["date"]))
-               for r in json.loads(path.read_text())["rows"] if (r["scene"], r["width_d"]) not in new]
+               for r in json.loads(path.read_text())["rows"] if key(r) not in new]
         rows = old + rows
-    path.write_text(json.dumps(dict(date=stamp, np=a.np_, rows=rows), indent=1))
-    plot(rows, a.out.with_suffix(".png"))
-    text = [f"# Hybrid against pure LAMMPS DEM as the scene grows", "",
-            f"`bench/scale_speed.py --np {a.np_} --sizes '{a.sizes}' --collapse-sizes '{a.collapse_sizes}' "
-            f"--tdis {a.tdis} --hcell {a.hcell}{' --keep' if a.keep else ''}`, {stamp} (each row's date in the JSON); "
-            f"{a.np_} LAMMPS rank(s) for DEM and hybrid alike, the hybrid's MPM process working while LAMMPS waits, "
-            "each pair side by side; a 2-core machine that may be shared (compare ratios).", "",
-            *table(rows), "", "![speedup against size](scale_speed.png)", ""]
-    a.out.write_text("\n".join(text))
+    command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --collapse-sizes "
+               f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{' --keep' if a.keep else ''}")
+    path.write_text(json.dumps(dict(date=stamp, np=a.np_, command=command, rows=rows), indent=1))
+    write(rows, command, stamp, a.out)
     return 0
 
 

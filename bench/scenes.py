@@ -43,6 +43,7 @@ from tqdm import tqdm
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 from hgtools.runner import CODES, HYBRID_CODES, host_dem    # noqa: E402 (tools/ is on the path just above)
+from hgtools.report import write_report    # noqa: E402
 
 RESULTS = REPO / "bench" / "results"
 SEED = 2024
@@ -172,14 +173,14 @@ def write(results: dict, np_: int) -> None:
     compare(results)
     RESULTS.mkdir(parents=True, exist_ok=True)
     table = scenes_table(results, np_)
-    (RESULTS / "scenes.md").write_text(table)
+    write_report(RESULTS / "scenes.md", table)
     (RESULTS / "scenes.json").write_text(json.dumps(dict(np=np_, scenes=results), indent=1))
     print(table)
     host_rows = liggghts_host_rows(results)
     if host_rows:
         dates = sorted({results[name].get("date", "") for name in HOST_SCENES if name in results})
         table = liggghts_host_table(host_rows, ", ".join(dates), np_)
-        (RESULTS / "liggghts_host.md").write_text(table)
+        write_report(RESULTS / "liggghts_host.md", table)
         (RESULTS / "liggghts_host.json").write_text(json.dumps(dict(date=dates, np=np_, rows=host_rows), indent=1))
         print(table)
 

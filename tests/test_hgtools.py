@@ -155,3 +155,17 @@ def test_hybrid_totals_from_the_log():
     totals = logs.hybrid_totals(text)
     assert totals["mass_drift"] == pytest.approx(0.01) and totals["points_max"] == 7
     assert totals["continuum_cells_max"] == 4 and totals["hybrid_cells_max"] == 3
+
+
+def test_a_rewritten_report_keeps_its_notes(tmp_path):
+    """A bench rewrites its report's tables and keeps what a person wrote below the marker."""
+    from hgtools.report import NOTES_MARKER, write_report
+    path = tmp_path / "bench.md"
+    assert write_report(path, "# Table\n\n| a |\n| 1 |\n") == ""
+    assert path.read_text().endswith(NOTES_MARKER + "\n")
+    path.write_text(path.read_text() + "\nThe row says 1.\n")
+    assert write_report(path, "# Table\n\n| a |\n| 2 |") == "The row says 1.\n"
+    text = path.read_text()
+    assert "| 2 |" in text and "| 1 |" not in text and text.endswith(NOTES_MARKER + "\n\nThe row says 1.\n")
+    write_report(path, "# Table\n\n| a |\n| 2 |")
+    assert path.read_text() == text    # rewriting is idempotent
