@@ -78,6 +78,12 @@ const TableDesc kTables[] = {
   {"boundary", "[[boundary]]  (any number)",
    "A rigid boundary acting on the grid velocities, in addition to the grid walls. "
    "It may move with a prescribed constant velocity."},
+  {"outlet", "[[outlet]]  (any number)",
+   "A sink: an axis-aligned box inside the grid domain; material points that enter it leave "
+   "the run at the end of that step. Their mass and number, summed over the outlets, go to "
+   "<output directory>/outflow.dat every [output] outflow_interval (columns: time s, mass out, "
+   "points out; mass per unit depth in 2D) and to the --summary figures. A silo's orifice: "
+   "a floor with a gap (two obstacle boxes) and an outlet below it."},
 };
 
 const KeyDesc kKeys[] = {
@@ -95,6 +101,7 @@ const KeyDesc kKeys[] = {
   {"", "material", Kind::TableArray, "", "required, at least one", "", kNone, kNone, false, "Materials, see [[material]]."},
   {"", "block", Kind::TableArray, "", "required, at least one", "", kNone, kNone, false, "Material blocks, see [[block]]."},
   {"", "boundary", Kind::TableArray, "", "none", "", kNone, kNone, false, "Rigid boundaries, see [[boundary]]."},
+  {"", "outlet", Kind::TableArray, "", "none", "", kNone, kNone, false, "Sinks for material, see [[outlet]]."},
 
   // [grid]
   {"grid", "cell_size", Kind::Number, "m", "required", "> 0", kNone, kNone, false,
@@ -133,6 +140,8 @@ const KeyDesc kKeys[] = {
    "Also write the grid mass and velocity with every snapshot."},
   {"output", "progress_interval", Kind::Number, "s (wall clock)", "5", ">= 0", kNone, kNone, false,
    "Wall-clock seconds between progress lines on standard output; 0 = none."},
+  {"output", "outflow_interval", Kind::Number, "s", "0.005", "> 0", kNone, kNone, false,
+   "Simulated time between lines of outflow.dat (only with an [[outlet]])."},
 
   // [[material]]
   {"material", "name", Kind::String, "", "required", "unique among the materials", kNone, kNone, false,
@@ -217,6 +226,12 @@ const KeyDesc kKeys[] = {
   {"boundary", "velocity", Kind::Vector, "m/s", "zero", "", kNone, kNone, false,
    "Prescribed constant velocity of the boundary (moving plate, pusher, intruder); "
    "point, lower and upper give its position at time 0."},
+
+  // [[outlet]]
+  {"outlet", "lower", Kind::Vector, "m", "required", "", kNone, kNone, false,
+   "Lower corner of the outlet box; it must overlap the grid domain."},
+  {"outlet", "upper", Kind::Vector, "m", "required", "> lower in every component", kNone, kNone, false,
+   "Upper corner of the outlet box."},
 };
 // clang-format on
 
@@ -644,6 +659,8 @@ Scene build_scene(const toml::table& root, const std::string& source) {
     s.output.grid_fields = o.opt_bool("grid_fields").value_or(s.output.grid_fields);
     s.output.progress_interval = o.number("progress_interval", s.output.progress_interval);
     o.check(s.output.progress_interval >= 0, "progress_interval", ">= 0", s.output.progress_interval);
+    s.output.outflow_interval = o.number("outflow_interval", s.output.outflow_interval);
+    o.check(s.output.outflow_interval > 0, "outflow_interval", "> 0", s.output.outflow_interval);
   }
 
   // [[material]]
@@ -815,6 +832,24 @@ Scene build_scene(const toml::table& root, const std::string& source) {
     }
     if (auto v = b.opt_vector("velocity")) bd.velocity = *v;
     s.boundaries.push_back(bd);
+  }
+
+  // [[outlet]]
+  const auto outlets = table_array(top, "outlet");
+  for (std::size_t i = 0; i < outlets.size(); ++i) {
+    Tbl o(source, dim, *outlets[i], "outlet", "[[outlet]] #" + std::to_string(i + 1), &outlets[i]->source());
+    o.check_keys();
+    Outlet out;
+    out.lower = o.req_vector("lower", " (an outlet is a box: lower and upper)");
+    out.upper = o.req_vector("upper", " (an outlet is a box: lower and upper)");
+    check_box(o, out.lower, out.upper, dim);
+    for (int a = 0; a < dim; ++a)
+      if (out.upper[a] <= s.grid.lower[a] || out.lower[a] >= s.grid.upper[a])
+        o.fail_table("the outlet lies outside the grid domain (axis " + std::string(1, "xyz"[a]) + "): it spans " +
+                     fmt_vec(out.lower, dim) + " to " + fmt_vec(out.upper, dim) + ", the domain is " +
+                     fmt_vec(s.grid.lower, dim) + " to " + fmt_vec(s.grid.upper, dim) +
+                     "; material would leave the grid before reaching it");
+    s.outlets.push_back(out);
   }
   return s;
 }

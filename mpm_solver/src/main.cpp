@@ -59,11 +59,15 @@ int run_scene(const mpm::Scene& scene, const Options& opt) {
   if (!opt.summary_path.empty()) {
     // Machine-readable figures for benchmarks and scripts.
     std::ofstream out(opt.summary_path);
+    out.precision(17);    // the outflow is summed against the points' masses to round-off
     out << "{\"dimension\": " << D << ", \"points\": " << solver.points().size()
         << ", \"grid_nodes\": " << solver.grid().num_nodes() << ", \"threads\": " << omp_get_max_threads()
         << ", \"steps\": " << done.step << ", \"time\": " << done.time << ", \"wall_seconds\": " << done.wall_seconds
         << ", \"point_steps_per_second\": " << done.point_steps_per_second
-        << ", \"peak_rss_bytes\": " << peak_rss_bytes() << "}\n";
+        << ", \"peak_rss_bytes\": " << peak_rss_bytes();
+    if (!scene.outlets.empty())
+      out << ", \"outflow_mass\": " << solver.outflow_mass() << ", \"outflow_points\": " << solver.outflow_points();
+    out << "}\n";
     if (!out) throw mpm::UserError("cannot write the summary file " + opt.summary_path);
   }
   if (!opt.no_output) std::printf("output: %s/points.h5 and points.xdmf\n", scene.output.directory.c_str());

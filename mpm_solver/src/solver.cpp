@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <numeric>
 #include <sstream>
@@ -211,6 +212,22 @@ void Solver<D>::step(double dt) {
   grid_update(dt);
   g2p(dt);
   advance_clock(dt);
+  if (!scene_.outlets.empty()) remove_outflow();
+}
+
+template <int D>
+void Solver<D>::remove_outflow() {
+  std::vector<char> out(points_.size(), 0);
+  bool any = false;
+  for (const Outlet& o : scene_.outlets) {
+    const Vec<D> lo = take<D>(o.lower), hi = take<D>(o.upper);
+    for (std::size_t p = 0; p < points_.size(); ++p)
+      if ((points_.x[p].array() >= lo.array()).all() && (points_.x[p].array() <= hi.array()).all()) out[p] = 1, any = true;
+  }
+  if (!any) return;
+  for (std::size_t p = 0; p < points_.size(); ++p)
+    if (out[p]) outflow_mass_ += points_.mass[p], ++outflow_points_;
+  remove_points(points_, out);
 }
 
 template <int D>
@@ -479,11 +496,29 @@ RunProgress run(Solver<D>& solver, const RunOptions& options, const std::functio
   const double tiny = 1e-12 * std::max(1.0, end);
   const long first_step = solver.steps();
   auto rate = [&](double wall) { return (solver.steps() - first_step) * double(solver.points().size()) / wall; };
+  // the outflow through the outlets: a line every outflow_interval of simulated time
+  std::ofstream outflow;
+  double next_outflow = solver.time(), recorded = -std::numeric_limits<double>::infinity();
+  auto record_outflow = [&] {
+    if (!outflow.is_open()) return;
+    outflow << solver.time() << ' ' << solver.outflow_mass() << ' ' << solver.outflow_points() << '\n';
+    recorded = solver.time();
+    while (next_outflow <= recorded + tiny) next_outflow += scene.output.outflow_interval;
+  };
+  if (options.write_output && !scene.outlets.empty()) {
+    const std::string path = scene.output.directory + "/outflow.dat";
+    outflow.open(path);
+    if (!outflow) throw UserError("cannot write " + path);
+    outflow << "# time_s mass_out points_out (mass per unit depth in 2D; mpm_solver [[outlet]])\n";
+    outflow.precision(10);
+    record_outflow();
+  }
   while (solver.time() < end - tiny && (options.max_steps <= 0 || solver.steps() - first_step < options.max_steps)) {
     double dt = solver.next_dt();
     dt = std::min(dt, next_output - solver.time());
     solver.step(dt);
     state_written = false;
+    if (solver.time() >= next_outflow - tiny) record_outflow();
     if (solver.steps() % kSortEvery == 0) solver.sort_points_by_cell();
     if (solver.time() >= next_output - tiny) {
       state_written = true;
@@ -499,6 +534,7 @@ RunProgress run(Solver<D>& solver, const RunOptions& options, const std::functio
       last_report = now;
     }
   }
+  if (solver.time() > recorded + tiny) record_outflow();    // the end of the run
   if (writer && !state_written)  // stopped early by max_steps: keep the last state
     writer->write(solver.points(), solver.grid(), solver.time(), solver.steps());
   const double wall = std::chrono::duration<double>(Clock::now() - start).count();

@@ -384,3 +384,14 @@ TEST(Config, ExampleDecksParse) {
 }
 
 }  // namespace
+
+TEST(Config, OutletIsABoxThatMustOverlapTheDomain) {
+  const mpm::Scene s = parse_scene(kMinimal2D + "\n[[outlet]]\nlower = [0.4, -0.1]\nupper = [0.6, 0.05]\n", "o.toml");
+  ASSERT_EQ(s.outlets.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.outlets[0].upper[1], 0.05);
+  EXPECT_DOUBLE_EQ(s.output.outflow_interval, 0.005);
+  EXPECT_NE(error_of(kMinimal2D + "\n[[outlet]]\nlower = [0.4, -0.3]\nupper = [0.6, -0.1]\n")
+                .find("the outlet lies outside the grid domain (axis y)"),
+            std::string::npos);
+  EXPECT_NE(error_of(kMinimal2D + "\n[[outlet]]\nlower = [0.4, 0.0]\n").find("upper"), std::string::npos);
+}

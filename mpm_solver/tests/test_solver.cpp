@@ -318,6 +318,28 @@ TEST(Boundaries, CoulombFloorDeceleratesSlidingBlockAtMuG) {
   EXPECT_NEAR(momentum / mass, expected, 0.05 * expected);
 }
 
+TEST(Boundaries, OutletRemovesWhatFallsIntoItAndCountsItsMass) {
+  // A block in free fall onto an outlet: every point leaves once it has entered the outlet box,
+  // none before (free fall: the block's bottom reaches the outlet at t = sqrt(2 h / g)), and
+  // the mass left in the run plus the outflow is the initial mass.
+  mpm::Scene scene = gravity_scene(0.01, {0, -0.3, 0}, {0.4, 0.3, 0});
+  scene.blocks.push_back(box({0.1, 0.1, 0}, {0.2, 0.2, 0}, 4));
+  scene.outlets.push_back({{0, -0.3, 0}, {0.4, -0.1, 0}});
+  mpm::Solver<2> s(scene);
+  double mass0 = 0;
+  for (double m : s.points().mass) mass0 += m;
+  const std::size_t n0 = s.points().size();
+  const double t_first = std::sqrt(2 * 0.2 / 9.81);    // bottom (y = 0.1) to the outlet's top (y = -0.1)
+  while (s.time() < 0.95 * t_first) s.step(std::min(s.stable_dt(), 0.95 * t_first - s.time()));
+  EXPECT_EQ(s.points().size(), n0);
+  EXPECT_EQ(s.outflow_points(), 0);
+  const double t_all = std::sqrt(2 * 0.3 / 9.81) + 0.01;    // the top has entered too
+  while (s.time() < t_all) s.step(std::min(s.stable_dt(), t_all - s.time()));
+  EXPECT_EQ(s.points().size(), 0u);
+  EXPECT_EQ(s.outflow_points(), static_cast<long>(n0));
+  EXPECT_NEAR(s.outflow_mass(), mass0, 1e-12 * mass0);
+}
+
 TEST(Boundaries, MovingIntruderPushesMaterialAndIsNotPenetrated) {
   // A rigid box driven down into a bed at a prescribed speed.
   mpm::Scene scene = gravity_scene(0.01, {0, 0, 0}, {0.6, 0.4, 0});

@@ -79,6 +79,12 @@ struct Boundary {
   Vec3 velocity{0, 0, 0};    ///< prescribed rigid velocity (moving plate or intruder)
 };
 
+/// A sink: material points that enter the box leave the run, their mass counted as outflow
+/// (a silo's orifice, the end of a chute).
+struct Outlet {
+  Vec3 lower{0, 0, 0}, upper{0, 0, 0};
+};
+
 struct GridSpec {
   double cell_size = 0;  ///< dx, m (required)
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};  ///< domain; material outside it is an error
@@ -102,6 +108,7 @@ struct OutputSpec {
   double interval = 0.0;      ///< simulated seconds between snapshots; 0 = first and last only
   bool grid_fields = false;   ///< also write grid mass and velocity
   double progress_interval = 5.0;  ///< wall seconds between progress lines; 0 = none
+  double outflow_interval = 0.005; ///< simulated seconds between lines of outflow.dat (scenes with outlets)
 };
 
 struct Scene {
@@ -115,6 +122,7 @@ struct Scene {
   std::vector<Material> materials;
   std::vector<Block> blocks;
   std::vector<Boundary> boundaries;
+  std::vector<Outlet> outlets;
 };
 
 }  // namespace mpm

@@ -38,8 +38,8 @@ class Solver {
   /// The step the next call to step() will take: the stable one, or the
   /// user's fixed step after checking it against the stable one (UserError if unstable).
   double next_dt() const;
-  /// Advances by dt (P2G, grid update, G2P). Throws UserError if a point leaves
-  /// the grid or the state stops being finite.
+  /// Advances by dt (P2G, grid update, G2P), then removes the points that entered an outlet.
+  /// Throws UserError if a point leaves the grid or the state stops being finite.
   void step(double dt);
 
   void p2g(double dt);
@@ -74,11 +74,16 @@ class Solver {
   std::pair<std::size_t, std::size_t> active_nodes() const { return {active_lo_, active_hi_}; }
   /// Largest point speed after the last G2P (or at start).
   double max_speed() const { return max_speed_; }
+  /// Mass and number of the points the outlets have removed so far.
+  double outflow_mass() const { return outflow_mass_; }
+  long outflow_points() const { return outflow_points_; }
 
  private:
   void seed_block(const Block& block);
   void apply_boundaries(std::size_t node, Vec<D>& v) const;
   void update_rigid_boundaries();
+  /// Removes the points inside an outlet, adding them to the outflow.
+  void remove_outflow();
   /// Threads worth using: small scenes run serially, since a parallel region
   /// costs more than it saves below a few thousand points per thread.
   int active_threads() const {
@@ -96,6 +101,8 @@ class Solver {
   double max_speed_ = 0;
   double time_ = 0;
   long steps_ = 0;
+  double outflow_mass_ = 0;
+  long outflow_points_ = 0;
   std::size_t min_points_per_thread_ = 4096;
 
   // Per-thread scratch grids for P2G (thread 0 writes the main grid), each
