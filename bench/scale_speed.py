@@ -186,7 +186,7 @@ def table(rows: list[dict]) -> list[str]:
         error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
-        out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']} | {r['continuum_share']:.0%} | "
+        out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
                    f"{cpu} | {r['predicted_speedup']:.2f}x | {error} | {runout} | {r['coupling_s']:.1f} "
                    f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) |")
@@ -242,6 +242,9 @@ def main() -> int:
     ap.add_argument("--hcell", default="0", help="the hybrid's cell, m, or 0 (the fix's, from the grains)")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of other (scene, size, cores) already in the JSON (each row has its date)")
+    ap.add_argument("--pin", action="store_true",
+                    help="pin the runs to the first --np cores (DEM and hybrid, MPM process included, share them): "
+                         "equal cores even where a waiting process would poll on a free core")
     ap.add_argument("--render", action="store_true",
                     help="run nothing: rewrite the report and the plot from the JSON (after editing the notes)")
     ap.add_argument("--work", type=Path, default=REPO / "runs" / "scale_speed")
@@ -254,20 +257,23 @@ def main() -> int:
         return 0
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     os.environ["OMP_NUM_THREADS"] = str(a.threads)    # the MPM process runs with what the model assumes
+    if a.pin:    # inherited by every run this starts; Open MPI must not rebind its processes
+        os.sched_setaffinity(0, set(range(a.np_)))
+        os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
     sizes = [int(n) for n in a.sizes.split(",") if n]
     rows = [run_silo(n, a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work) for n in sizes]
     rows += [run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)
              for n in (int(n) for n in a.collapse_sizes.split(",") if n)]
     for r in rows:
-        r["date"] = stamp
+        r["date"], r["pinned"] = stamp, a.pin
     if a.keep and path.exists():
-        key = lambda r: (r["scene"], r["width_d"], r["cores"])    # noqa: E731
+        key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False))    # noqa: E731
         new = {key(r) for r in rows}
         old = [dict(r, date=r.get("date", json.loads(path.read_text())["date"]))
                for r in json.loads(path.read_text())["rows"] if key(r) not in new]
         rows = old + rows
     command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --collapse-sizes "
-               f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{' --keep' if a.keep else ''}")
+               f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     path.write_text(json.dumps(dict(date=stamp, np=a.np_, command=command, rows=rows), indent=1))
     write(rows, command, stamp, a.out)
     return 0
