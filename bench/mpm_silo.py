@@ -3,8 +3,8 @@
 discharge (tools/dem_silo.py, from its cached settled silo) and the pure-MPM silo of the same
 size (tools/mpm_silo.py: the calibrated continuum, Drucker-Prager and mu(I), cells of several
 grain sizes), each run's steady rate over the same window (hgtools.discharge.fit_rate) and its
-wall time. The MPM runs use one OpenMP thread per LAMMPS rank's core count (--threads, default
-the DEM's ranks), so both get the same cores.
+wall time. The MPM runs use --threads OpenMP threads, by default as many as the DEM's LAMMPS
+ranks, so both get the same cores.
 
 What it measures: how far a continuum alone is from the grains at the orifice, as the cell
 shrinks towards the grain size (the hybrid keeps the orifice's grains discrete instead;
@@ -22,15 +22,11 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "tools"))
+sys.path[:0] = [str(REPO / "tools"), str(REPO / "bench")]
 from dem_silo import run_dem_silo  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 from mpm_silo import MpmSilo, run as run_mpm_silo  # noqa: E402
-
-RESULTS = REPO / "bench" / "results"
-D = 0.002        # grain diameter, m
-ORIFICE = 10     # d
-DEPTH = 3        # fill height over width, as bench/scale_speed.py
+from scale_speed import D, DEPTH, ORIFICE, RESULTS, silo_size  # noqa: E402 (the same silo, in grain diameters)
 
 
 def main() -> int:
@@ -47,7 +43,7 @@ def main() -> int:
     a = ap.parse_args()
     n, threads = a.width_d, a.threads or a.np_
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    size = dict(width=n * D, height=DEPTH * n * D, orifice=ORIFICE * D, d=D)
+    size = silo_size(n)
     dem = run_dem_silo(**size, np_=a.np_, seed=a.seed, tdis=a.tdis, fstop=0.9, out=a.work / "dem", timeout=4 * 3600)
     rows = [dict(form="dem", cell_d=None, rate=dem.rate, rate_error=0.0, wall_s=dem.wall_time, speedup=1.0,
                  grains=dem.grains, cores=a.np_)]
