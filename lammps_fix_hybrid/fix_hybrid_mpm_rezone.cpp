@@ -294,7 +294,7 @@ void FixHybridMPM::rezone(int source)
     atom->map_set();
   }
   const coupler::RezoneReport report =
-      coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath.drift);
+      coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath);
   // what the rezone did to the totals of grains plus points (exact up to round-off)
   double before[7], after[7];
   coupler::rezone_totals(grains_before, grains_after, ack, before, after);

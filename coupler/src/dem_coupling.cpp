@@ -118,8 +118,7 @@ StepOutcome rezone_grains(DemSession &session, MPI_Comm comm, const RezonePlan<D
 
   // 5. apply them: delete, or scale and add the rigid velocity increment
   DemGrains now = atoms.grains();    // (new grains may have moved the arrays)
-  std::int64_t hybrid_local = 0;
-  const std::vector<char> remove = apply_corrections<D>(grid, cells, slots, corrections, now, plan.rules, hybrid_local);
+  const std::vector<char> remove = apply_corrections<D>(grid, cells, slots, corrections, now, plan.rules);
   std::int64_t deleted_local = 0;
   for (char r : remove) deleted_local += r ? 1 : 0;
   atoms.remove(remove);
@@ -133,18 +132,18 @@ StepOutcome rezone_grains(DemSession &session, MPI_Comm comm, const RezonePlan<D
   MPI_Allreduce(force_local, force, 3, MPI_DOUBLE, MPI_SUM, comm);
   out = session.settle(session.rezone_finish(force, ack));
 
-  const std::int64_t local[3] = {deleted_local, made_local, hybrid_local};
-  std::int64_t all[3];
-  MPI_Allreduce(local, all, 3, MPI_INT64_T, MPI_SUM, comm);
-  counts.deleted = all[0], counts.made = all[1], counts.hybrid = all[2];
+  const std::int64_t local[2] = {deleted_local, made_local};
+  std::int64_t all[2];
+  MPI_Allreduce(local, all, 2, MPI_INT64_T, MPI_SUM, comm);
+  counts.deleted = all[0], counts.made = all[1];
   return out;
 }
 
 RezoneReport rezone_report(std::int64_t step, const RezoneCounts &counts, const StepAck &ack, double weight,
-                           const double drift[2]) {
+                           const RezoneAftermath &after) {
   RezoneReport r;
-  r.step = step, r.weight = weight, r.lightest = -drift[0], r.heaviest = drift[1];
-  r.grains_deleted = counts.deleted, r.grains_made = counts.made, r.hybrid_grains = counts.hybrid;
+  r.step = step, r.weight = weight, r.lightest = -after.drift[0], r.heaviest = after.drift[1];
+  r.grains_deleted = counts.deleted, r.grains_made = counts.made, r.hybrid_grains = after.hybrid_grains;
   r.points_made = ack.points_made, r.moved_cells = ack.moved_cells;
   r.continuum_cells = ack.zone_cells[kContinuum], r.hybrid_cells = ack.zone_cells[kHybrid];
   r.discrete_cells = ack.zone_cells[kDiscrete];
@@ -157,6 +156,8 @@ RezoneAftermath rezone_aftermath(const DemGrains &g, const GrainRules &rules, st
   double drift[2];
   mass_drift(g, rules, drift);
   MPI_Allreduce(drift, a.drift, 2, MPI_DOUBLE, MPI_MAX, comm);
+  const std::int64_t hybrid = hybrid_grain_count(g);    // all of them, not only the rezoned cells'
+  MPI_Allreduce(&hybrid, &a.hybrid_grains, 1, MPI_INT64_T, MPI_SUM, comm);
   MPI_Allreduce(&max_tag, &a.max_tag, 1, MPI_INT64_T, MPI_MAX, comm);
   return a;
 }

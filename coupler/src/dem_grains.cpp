@@ -72,6 +72,12 @@ void mass_drift(const DemGrains &g, const GrainRules &rules, double out[2]) {
   }
 }
 
+std::int64_t hybrid_grain_count(const DemGrains &g) {
+  std::int64_t n = 0;
+  for (int i = 0; i < g.n; i++) n += g.coupled(i) && g.weight[i] < 1.0 ? 1 : 0;
+  return n;
+}
+
 template std::vector<CellGrains> cell_grains<2>(const GridGeometry<2> &, const DemGrains &);
 template std::vector<CellGrains> cell_grains<3>(const GridGeometry<3> &, const DemGrains &);
 

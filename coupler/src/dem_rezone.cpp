@@ -176,11 +176,10 @@ void add_new_grain(std::map<std::size_t, GrainSums<D>> &sums, const std::vector<
 template <int D>
 std::vector<char> apply_corrections(const GridGeometry<D> &grid, const std::vector<RezoneCell<D>> &cells,
                                     const CellSlots &slots, const std::vector<GrainCorrection<D>> &corrections,
-                                    DemGrains &g, const GrainRules &rules, std::int64_t &hybrid) {
+                                    DemGrains &g, const GrainRules &rules) {
   std::map<std::uint64_t, const GrainCorrection<D> *> correction_of;
   for (const auto &gc : corrections) correction_of[gc.cell] = &gc;
   std::vector<char> remove(g.n, 0);
-  hybrid = 0;
   for (int i = 0; i < g.n; i++) {
     if (!g.coupled(i)) continue;
     const std::int64_t k = slot_of_cell_at<D>(grid, g.x[i], slots);
@@ -204,7 +203,6 @@ std::vector<char> apply_corrections(const GridGeometry<D> &grid, const std::vect
       for (int a = 0; a < 3; a++) g.omega[i][a] += fix.omega[a];
     g.rmass[i] = gc.mass_factor * rules.solid_mass(g.radius[i]);    // the correction scales the solid sums
     g.weight[i] = gc.weight;
-    if (gc.weight < 1.0) hybrid++;
   }
   return remove;
 }
@@ -223,7 +221,7 @@ std::vector<char> apply_corrections(const GridGeometry<D> &grid, const std::vect
                                  const PlannedGrain<D> &, const GrainRules &);                                     \
   template std::vector<char> apply_corrections<D>(const GridGeometry<D> &, const std::vector<RezoneCell<D>> &,     \
                                                   const CellSlots &, const std::vector<GrainCorrection<D>> &,      \
-                                                  DemGrains &, const GrainRules &, std::int64_t &);
+                                                  DemGrains &, const GrainRules &);
 HYBRID_DEM_REZONE(2)
 HYBRID_DEM_REZONE(3)
 

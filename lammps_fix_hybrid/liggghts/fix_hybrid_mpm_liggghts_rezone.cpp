@@ -282,7 +282,7 @@ void FixHybridMPMLiggghts::rezone(int source)
     atom->map_set();
   }
   const coupler::RezoneReport report =
-      coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath.drift);
+      coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath);
   coupler::rezone_totals(grains_before, grains_after, ack, before, after);
   // its lines in the rezone log (every rezone with rezone_log full, the conversion by default)
   say(run_log->rezone(report, source != coupler::kZonesOracle, opt->rezone_log, before, after));

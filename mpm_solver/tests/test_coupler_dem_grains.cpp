@@ -82,6 +82,15 @@ TEST(DemGrains, MassDriftIsCarriedOverWeightTimesSolidMass) {
   EXPECT_DOUBLE_EQ(d[1], 1.0);
 }
 
+TEST(DemGrains, HybridGrainsAreTheGroupsGrainsOfWeightBelowOne) {
+  Atoms a;
+  EXPECT_EQ(coupler::hybrid_grain_count(a.view()), 1);
+  a.weight[2] = 0.5;    // the frozen grain is not of the group
+  EXPECT_EQ(coupler::hybrid_grain_count(a.view()), 1);
+  a.weight[1] = 0.5;
+  EXPECT_EQ(coupler::hybrid_grain_count(a.view()), 2);
+}
+
 TEST(DemRezone, SumsOfTheMovingCellsAndTheirCorrections) {
   Atoms a;
   a.xs[1][0] = 0.022;    // the grains in two cells
@@ -118,10 +127,8 @@ TEST(DemRezone, SumsOfTheMovingCellsAndTheirCorrections) {
   corrections[1].velocity[0] = 1.0, corrections[1].omega[0] = 2.0;
   corrections[1].centre[0] = 0.025, corrections[1].centre[1] = 0.015;
   auto view = a.view();
-  std::int64_t hybrid = -1;
-  const auto remove = coupler::apply_corrections<2>(gr, cells, slots, corrections, view, rules(), hybrid);
+  const auto remove = coupler::apply_corrections<2>(gr, cells, slots, corrections, view, rules());
   EXPECT_EQ(remove, (std::vector<char>{1, 0, 0}));
-  EXPECT_EQ(hybrid, 1);
   EXPECT_DOUBLE_EQ(a.rmass[1], 0.5 * 1.44);
   EXPECT_DOUBLE_EQ(a.weight[1], 0.5);
   // dv = velocity + omega x (x - centre) = (1, 0) + 2 (-(0.012 - 0.015), 0.022 - 0.025)

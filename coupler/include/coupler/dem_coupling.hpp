@@ -56,7 +56,7 @@ struct RezoneAtoms {
 
 /// What a rezone did, over all DEM ranks.
 struct RezoneCounts {
-  std::int64_t deleted = 0, made = 0, hybrid = 0;
+  std::int64_t deleted = 0, made = 0;
   double oracle_wait = 0.0;    ///< s this rank waited for the new zone map (the oracle)
 };
 
@@ -82,19 +82,19 @@ StepOutcome rezone_grains(DemSession &session, MPI_Comm comm, const RezonePlan<D
                           std::vector<signed char> &zones, RezoneAtoms<D> &atoms, double *const *support,
                           StepAck &ack, RezoneCounts &counts);
 
-/// The rezone's report line fields from its counts, acknowledgement and mass drift (the
-/// carried masses' extremes: drift[0] the lightest, negated, drift[1] the heaviest, all ranks).
-RezoneReport rezone_report(std::int64_t step, const RezoneCounts &counts, const StepAck &ack, double weight,
-                           const double drift[2]);
-
 /// After a rezone, over all DEM ranks: the carried masses' drift from their share of the solid
-/// mass (drift[0] the lightest's, negated, drift[1] the heaviest's) and the largest atom ID
-/// (from this rank's `max_tag`; new atoms have ID 0 until the host numbers them).
+/// mass (drift[0] the lightest's, negated, drift[1] the heaviest's), the largest atom ID (from
+/// this rank's `max_tag`; new atoms have ID 0 until the host numbers them) and the hybrid grains.
 struct RezoneAftermath {
   double drift[2] = {0, 0};
   std::int64_t max_tag = 0;
+  std::int64_t hybrid_grains = 0;    ///< grains of the group with a weight below 1, all ranks
 };
 RezoneAftermath rezone_aftermath(const DemGrains &g, const GrainRules &rules, std::int64_t max_tag, MPI_Comm comm);
+
+/// The rezone's report line fields from its counts, acknowledgement and aftermath.
+RezoneReport rezone_report(std::int64_t step, const RezoneCounts &counts, const StepAck &ack, double weight,
+                           const RezoneAftermath &after);
 
 /// Whether an exchange sends an output frame: every output_every-th exchange (from the first,
 /// exchange count `exchanges` before it) and the forced one at the end of a run; never for 0.

@@ -60,6 +60,9 @@ std::vector<int> coupled_grains(const DemGrains &g, ZoneOf &&zone_of) {
 /// lightest's, negated, out[1] the heaviest's (for a max-reduction over the ranks).
 void mass_drift(const DemGrains &g, const GrainRules &rules, double out[2]);
 
+/// How many of this rank's grains of the group carry a weight below 1 (the hybrid grains).
+std::int64_t hybrid_grain_count(const DemGrains &g);
+
 
 /// The fix's per-atom arrays that travel with a grain (a host's fix allocates them and hands
 /// them to its exchange and copy callbacks): weight, support acceleration, stored stress.

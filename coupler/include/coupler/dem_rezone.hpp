@@ -75,10 +75,10 @@ void add_new_grain(std::map<std::size_t, GrainSums<D>> &sums, const std::vector<
 /// The MPM process's corrections applied to this rank's grains of the group: grains of removed
 /// cells are flagged (the host deletes them), the others take their cell's rigid velocity
 /// increment, their new mass (mass_factor times their solid mass) and weight. Returns the
-/// flags (one per atom) and, through `hybrid`, how many grains are left with a weight below 1.
+/// flags (one per atom).
 template <int D>
 std::vector<char> apply_corrections(const GridGeometry<D> &grid, const std::vector<RezoneCell<D>> &cells,
                                     const CellSlots &slots, const std::vector<GrainCorrection<D>> &corrections,
-                                    DemGrains &g, const GrainRules &rules, std::int64_t &hybrid);
+                                    DemGrains &g, const GrainRules &rules);
 
 }    // namespace coupler
