@@ -12,7 +12,8 @@ cores. The hybrid uses the fix's grid from the grains (`hcell 0`: 6 d cells, 2x2
 9 disks per point) unless --hcell says otherwise.
 
 Measures, per size: the DEM's and the hybrid's wall times of the discharge (speedup = DEM over
-hybrid), the steady discharge rate of each (error = hybrid over DEM - 1), the continuum's share
+hybrid), the steady discharge rate of each (error = hybrid over DEM - 1; beside it the same for the grains
+counted, since a hybrid's grains may carry more or less than their solid mass), the continuum's share
 of the material (1 - the grains' carried mass over the total, f_couple[8], averaged over the
 thermo rows), and the hybrid's time ledger (entries 30-32: coupling, MPM wait, rezones).
 
@@ -146,7 +147,9 @@ def run_silo(n: int, np_: int, tdis: float, seed: int, hcell: str, threads: int,
     hyb, hyb_cpu = timed(run_dem_silo, out=work / f"hybrid_{n}", hybrid_vars={"hcell": hcell}, **common)
     row = dict(scene="silo_2d", grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=ORIFICE,
                error=hyb.rate / dem.rate - 1, runout_error=None, cores=np_, lammps_ranks=np_, mpm_threads=threads,
-               rate_dem=dem.rate, rate_hybrid=hyb.rate, hcell=hcell, **speeds(dem, hyb, dem_cpu, hyb_cpu),
+               rate_dem=dem.rate, rate_hybrid=hyb.rate, grain_rate_error=hyb.grain_rate / dem.grain_rate - 1,
+               mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=hcell,
+               **speeds(dem, hyb, dem_cpu, hyb_cpu),
                **cost_model(dem.loop_time, work / f"dem_{n}" / "log.lammps", work / f"hybrid_{n}" / "log.lammps",
                             threads))
     print(f"silo W = {n} d: {dem.grains} grains, speedup {row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x)"
@@ -184,6 +187,8 @@ def table(rows: list[dict]) -> list[str]:
            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
+        if "grain_rate_error" in r:    # the grains that left, counted (rows from 2026-11-26 on)
+            error += f" (grains {r['grain_rate_error']:+.1%})"
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
         out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "

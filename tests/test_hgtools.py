@@ -169,3 +169,22 @@ def test_a_rewritten_report_keeps_its_notes(tmp_path):
     assert "| 2 |" in text and "| 1 |" not in text and text.endswith(NOTES_MARKER + "\n\nThe row says 1.\n")
     write_report(path, "# Table\n\n| a |\n| 2 |")
     assert path.read_text() == text    # rewriting is idempotent
+
+
+def test_discharge_record_gives_the_grain_rate_and_the_mass_each_grain_carried(tmp_path):
+    """hgtools.discharge.measure fits the grains that left over the mass fit's window: a record
+    where grains of 2 g leave at 300 per s from 0.05 s gives 0.6 kg/s and 2 g a grain; grains
+    carrying half that (a hybrid's light grains) show as 1 g each at the same grain rate."""
+    from hgtools.discharge import measure
+    t = np.arange(0.0, 0.5001, 0.01)
+    for each in (0.002, 0.001):
+        n_out = np.floor(300 * np.maximum(t - 0.05, 0))
+        m_out = each * n_out
+        mass0 = 10.0
+        rows = np.column_stack([t, mass0 - m_out, 0.25 * m_out, 0.75 * m_out, 5000 - n_out, np.floor(0.25 * n_out),
+                                n_out - np.floor(0.25 * n_out), 5000 - (n_out - np.floor(0.25 * n_out))])
+        path = tmp_path / "discharge.dat"
+        np.savetxt(path, rows, header="t M_in M_fall M_del N_in N_fall N_del N_all")
+        figures, _ = measure(path, mass0)
+        assert figures["grain_rate"] == pytest.approx(300, rel=0.01)
+        assert figures["rate"] / figures["grain_rate"] == pytest.approx(each, rel=0.01)

@@ -51,6 +51,10 @@ def measure(path: Path, mass0: float) -> tuple[dict, np.ndarray]:
                    end_time=float(t[-1]), discharged_fraction=float((m_fall[-1] + m_del[-1]) / mass0),
                    mass_balance=float(np.max(np.abs(m_in + m_fall + m_del - mass0)) / mass0),
                    **fit_rate(t, m_fall + m_del, mass0))
+    # the grains that left, counted, over the same window: with the mass rate, the mass each grain
+    # carried out (a hybrid's grains may carry more or less than their solid mass)
+    sel = (t >= figures["window"][0] - 1e-9) & (t <= figures["window"][1] + 1e-9)
+    figures["grain_rate"] = float(np.polyfit(t[sel], (rec[:, 5] + rec[:, 6])[sel], 1)[0])
     return figures, rec[:, 4:8].astype(int).T
 
 
@@ -85,6 +89,7 @@ class Discharge:
     prep_wall_time: float          # s, preparation (this run, or the cached one's)
     wall_time: float               # s, the discharge
     prepared: bool                 # True if the settled silo was built in this run
+    grain_rate: float = float("nan")    # grains leaving per s, fitted over the same window
     steps: int = 0                 # LAMMPS steps of the discharge
     loop_time: float = 0.0         # s, LAMMPS's summed loop times of those steps
     times: list = field(default_factory=list)      # records: s after the opening
@@ -97,6 +102,11 @@ class Discharge:
     def ratio(self) -> float:
         """Measured rate / Beverloo's."""
         return self.rate / self.beverloo
+
+    @property
+    def mass_per_grain(self) -> float:
+        """Mass rate over grain rate: the mean mass a leaving grain carried, kg (2D: per m)."""
+        return self.rate / self.grain_rate
 
     @property
     def halves_spread(self) -> float:
@@ -125,4 +135,5 @@ class Discharge:
         t_a, t_b = self.window
         return (f"  rate W = {self.rate:.4g} {unit} (fit {t_a:.3f}..{t_b:.3f} s; halves {self.rate_first:.4g}, "
                 f"{self.rate_second:.4g}, spread {100 * self.halves_spread:.1f} %; rms residual "
-                f"{100 * self.fit_rel:.2f} % of the window's mass)\n")
+                f"{100 * self.fit_rel:.2f} % of the window's mass); {self.grain_rate:.1f} grains/s, "
+                f"{self.mass_per_grain:.4g} {unit.split('/')[0]} each\n")
