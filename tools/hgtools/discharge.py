@@ -18,15 +18,21 @@ def walls_far(width: float, orifice: float, d: float) -> bool:
     return width > 2.5 * orifice and width > orifice + 30 * d
 
 
+def steady_window(t: np.ndarray, m_out: np.ndarray, mass0: float, transient: float = TRANSIENT,
+                  fmax: float = FIT_FMAX) -> tuple[np.ndarray, float]:
+    """The records of the steady window (see the module docstring), as a mask over t, and its end."""
+    past = np.nonzero(m_out >= fmax * mass0)[0]
+    t_b = float(t[past[0]]) if len(past) else float(t[-1])
+    return (t >= transient - 1e-9) & (t <= t_b + 1e-9), t_b
+
+
 def fit_rate(t: np.ndarray, m_out: np.ndarray, mass0: float, transient: float = TRANSIENT,
              fmax: float = FIT_FMAX) -> dict:
     """Steady rate of the discharged mass m_out(t): the least-squares slope over the window
     (see the module docstring), the slopes of its two halves and the rms residual."""
     t = np.asarray(t, dtype=float)
     m_out = np.asarray(m_out, dtype=float)
-    past = np.nonzero(m_out >= fmax * mass0)[0]
-    t_b = float(t[past[0]]) if len(past) else float(t[-1])
-    sel = (t >= transient - 1e-9) & (t <= t_b + 1e-9)
+    sel, t_b = steady_window(t, m_out, mass0, transient, fmax)
     if sel.sum() < 6:
         raise RuntimeError(f"steady window {transient:.3f}..{t_b:.3f} s holds only {int(sel.sum())} "
                            f"records: the discharge is too short (or clogged)")
@@ -53,7 +59,7 @@ def measure(path: Path, mass0: float) -> tuple[dict, np.ndarray]:
                    **fit_rate(t, m_fall + m_del, mass0))
     # the grains that left, counted, over the same window: with the mass rate, the mass each grain
     # carried out (a hybrid's grains may carry more or less than their solid mass)
-    sel = (t >= figures["window"][0] - 1e-9) & (t <= figures["window"][1] + 1e-9)
+    sel, _ = steady_window(t, m_fall + m_del, mass0)
     figures["grain_rate"] = float(np.polyfit(t[sel], (rec[:, 5] + rec[:, 6])[sel], 1)[0])
     return figures, rec[:, 4:8].astype(int).T
 
