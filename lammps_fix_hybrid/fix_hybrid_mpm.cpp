@@ -203,7 +203,8 @@ void FixHybridMPM::connect()
   // the grid: the fix line's cell, or one chosen from the grains (and the oracle's defaults from it)
   std::string problem;
   try {
-    const std::string grid = coupler::grid_of_run(*opt, domain->dimension, group->count(igroup), problem);
+    const std::string grid = coupler::grid_of_run(*opt, domain->dimension, group->count(igroup), domain->boxlo,
+                                                  domain->boxhi, problem);
     if (comm->me == 0) utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {}\n", grid));
   } catch (const coupler::OptionError &e) {
     illegal(e.what());

@@ -15,6 +15,7 @@
 
 #include "coupler/conversion.hpp"
 #include "coupler/dem_grains.hpp"
+#include "coupler/fix_options.hpp"
 #include "coupler/grid_geometry.hpp"
 #include "coupler/transfer.hpp"
 
@@ -27,12 +28,11 @@ inline constexpr int kPerAtomValues = coupler::GrainArrays::kValues;
 template <int D>
 using Vec = Eigen::Matrix<double, D, 1>;
 
-// the MPM grid over the box (both programs build it from the box and the cell size)
+// the MPM grid over the box (both programs build it from the box, the cell and the touched faces)
 template <int D>
-coupler::GridGeometry<D> box_grid(const Domain *domain, double cell)
+coupler::GridGeometry<D> box_grid(const Domain *domain, const coupler::FixOptions &options)
 {
-  return coupler::padded_grid<D>(Eigen::Map<const Vec<D>>(domain->boxlo), Eigen::Map<const Vec<D>>(domain->boxhi),
-                                 cell);
+  return coupler::run_grid<D>(options, domain->boxlo, domain->boxhi);
 }
 
 }    // namespace hybrid_mpm

@@ -44,17 +44,17 @@ void FixHybridMPM::compute_zones()
   const std::vector<Region *> regions = prematched(opt->continuum_regions);
   auto inside = [&](const auto &x) { return in_any(regions, x[0], x[1], x.size() == 3 ? x[2] : 0.0); };
   if (domain->dimension == 2) {
-    const auto grid = box_grid<2>(domain, opt->cell);
+    const auto grid = box_grid<2>(domain, *opt);
     zones = coupler::zones_from_regions<2>(grid, Eigen::Map<const Vec<2>>(domain->boxlo),
                                             Eigen::Map<const Vec<2>>(domain->boxhi), opt->hybrid_width, inside);
   } else {
-    const auto grid = box_grid<3>(domain, opt->cell);
+    const auto grid = box_grid<3>(domain, *opt);
     zones = coupler::zones_from_regions<3>(grid, Eigen::Map<const Vec<3>>(domain->boxlo),
                                             Eigen::Map<const Vec<3>>(domain->boxhi), opt->hybrid_width, inside);
   }
   if (opt->continuum_regions.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);
-  if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, opt->cell));
-  else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, opt->cell));
+  if (domain->dimension == 2) transfer2 = std::make_unique<coupler::GrainTransfer<2>>(box_grid<2>(domain, *opt));
+  else transfer3 = std::make_unique<coupler::GrainTransfer<3>>(box_grid<3>(domain, *opt));
   // A continuum region that holds no cell centre of the box converts nothing: a region smaller
   // than a cell, or outside the box, is a mistake, not an empty continuum.
   const auto match = [&](int k, const double *x) { return regions[k]->match(x[0], x[1], x[2]) != 0; };

@@ -96,6 +96,12 @@ double grains_per_point(int dimension, double cell_in_grains, double packing, in
 
 }    // namespace
 
+std::array<double, 3> touched_walls(const FixOptions &o, const double box_lo[3], const double box_hi[3]) {
+  double lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) lo[a] = o.container_edge(a, 0, box_lo, box_hi), hi[a] = o.container_edge(a, 1, box_lo, box_hi);
+  return touched_walls(lo, hi, o.continuum.touched_faces);
+}
+
 GrainGrid grid_from_grains(int dimension, double grain_diameter, double packing, int points_per_axis) {
   // grains per point grow as cell^dimension: the cell that gives one, scaled up
   const double least = std::pow(kGrainsPerPoint / grains_per_point(dimension, 1.0, packing, points_per_axis),
@@ -113,21 +119,75 @@ double grid_packing(const FixOptions &o, int dimension) {
   return dimension == 2 ? 0.82 : 0.60;
 }
 
-std::string resolve_grid(FixOptions &o, int dimension, double grain_diameter) {
+std::vector<TouchedSpan> touched_spans(const FixOptions &o, int dimension, const double box_lo[3],
+                                       const double box_hi[3]) {
+  std::vector<TouchedSpan> spans;
+  for (int a = 0; a < dimension; ++a) {
+    const std::uint32_t both = face_bit(a, 0) | face_bit(a, 1);
+    const double width = o.container_edge(a, 1, box_lo, box_hi) - o.container_edge(a, 0, box_lo, box_hi);
+    if ((o.continuum.touched_faces & both) == both && std::isfinite(width) && width > 0) spans.push_back({a, width});
+  }
+  return spans;
+}
+
+namespace {
+
+bool divides(double cell, double width) {
+  const double n = width / cell;
+  return std::abs(n - std::round(n)) <= 1e-6 * std::max(1.0, n);
+}
+
+// A warning for a cell that does not divide a width the continuum touches on both sides: the
+// upper face then lies inside a cell (the grid's nodes are laid from the lower face).
+std::string misfit_note(double cell, const std::vector<TouchedSpan> &spans) {
+  for (const TouchedSpan &s : spans)
+    if (!divides(cell, s.width)) {
+      const std::string axis(1, "xyz"[s.axis]);
+      return "; warning: the container's " + axis + " faces the continuum touches are " + general(s.width / cell, 4) +
+             " cells apart, so " + axis + "hi lies inside a cell and the continuum's wall there stands up to a cell "
+             "past the grains' wall: give a cell that divides " + general(s.width, 6) + " (e.g. " +
+             general(s.width / std::max(1L, std::lround(s.width / cell)), 6) + ") or leave cell out";
+    }
+  return "";
+}
+
+}    // namespace
+
+double cell_dividing(double nominal, const std::vector<TouchedSpan> &spans) {
+  if (spans.empty()) return nominal;
+  const double first = spans.front().width;
+  const long n0 = std::max(1L, std::lround(first / nominal));
+  // nearest the nominal cell first: n0, n0 + 1, n0 - 1, ... while within a quarter of it
+  for (long step = 0; step <= n0; ++step)
+    for (const long n : {n0 + step, n0 - step}) {
+      if (n < 1 || std::abs(first / n - nominal) > 0.25 * nominal) continue;
+      const double cell = first / n;
+      if (std::all_of(spans.begin(), spans.end(), [&](const TouchedSpan &s) { return divides(cell, s.width); }))
+        return cell;
+    }
+  return first / n0;
+}
+
+std::string resolve_grid(FixOptions &o, int dimension, double grain_diameter, const std::vector<TouchedSpan> &spans) {
   ContinuumSettings &c = o.continuum;
   if (!(grain_diameter > 0.0)) {
     if (o.cell <= 0.0) illegal("keyword 'cell' is needed: the group has no grains to choose the MPM grid cell from");
     check_oracle_options(o, dimension);
-    return "cell " + general(o.cell, 6);
+    return "cell " + general(o.cell, 6) + misfit_note(o.cell, spans);
   }
   const double packing = grid_packing(o, dimension);
   std::string chosen;
   if (o.cell <= 0.0) {
     const int per_axis = o.points_given ? c.points_per_axis : kPointsPerAxis;
     const GrainGrid g = grid_from_grains(dimension, grain_diameter, packing, per_axis);
-    o.cell = g.cell;
+    o.cell = cell_dividing(g.cell, spans);
     c.points_per_axis = g.points_per_axis;
-    chosen = " (chosen from the grains)";
+    chosen = " (chosen from the grains";
+    if (o.cell != g.cell)
+      chosen += ", fitted to the " + std::string(1, "xyz"[spans.front().axis]) + " width " +
+                general(spans.front().width, 6) + " the continuum touches: " +
+                std::to_string(std::lround(spans.front().width / o.cell)) + " cells";
+    chosen += ")";
   }
   check_oracle_options(o, dimension);
   const double in_grains = o.cell / grain_diameter;
@@ -135,12 +195,14 @@ std::string resolve_grid(FixOptions &o, int dimension, double grain_diameter) {
          std::to_string(c.points_per_axis) + "^" + std::to_string(dimension) +
          " points per cell: a point made from grains carries " +
          general(grains_per_point(dimension, in_grains, packing, c.points_per_axis), 3) + " grains at packing " +
-         general(packing, 3);
+         general(packing, 3) + misfit_note(o.cell, spans);
 }
 
-std::string grid_of_run(FixOptions &o, int dimension, std::int64_t grains, std::string &problem) {
+std::string grid_of_run(FixOptions &o, int dimension, std::int64_t grains, const double box_lo[3],
+                        const double box_hi[3], std::string &problem) {
   const double diameter = o.continuum.grain_diameter;
-  const std::string line = resolve_grid(o, dimension, grains > 0 || o.diameter_given ? diameter : 0.0);
+  const std::string line = resolve_grid(o, dimension, grains > 0 || o.diameter_given ? diameter : 0.0,
+                                        touched_spans(o, dimension, box_lo, box_hi));
   problem.clear();
   // With cells under 2 grain diameters the oracle's packing fraction per cell counts one or two
   // grains and a cell's rests land on a few points: a published 2D collapse with 1.74 d cells

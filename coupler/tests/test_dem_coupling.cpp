@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <cmath>
 #include <cstdio>
 #include <vector>
 
@@ -164,16 +165,63 @@ TEST(DemCoupling, GridOfRunRefusesAdaptiveCellsOfFewGrains) {
                                         [](const std::string &) { return false; });
   opt.continuum.grain_diameter = 0.002;
   std::string problem;
-  coupler::grid_of_run(opt, 2, 100, problem);
+  const double lo[3] = {0, 0, 0}, hi[3] = {0.1, 0.1, 0.1};
+  coupler::grid_of_run(opt, 2, 100, lo, hi, problem);
   EXPECT_EQ(problem, "cell 0.0035 is under 2 grain diameters (mean diameter 0.002): adaptive zones need cells that "
                      "hold several grains. Use cell 0.004 or more");
   // chosen from the grains, never too small; with no grains (and no diameter) a cell must be given
   opt = coupler::parse_fix_options({"adaptive", "10"}, 3, 1, [](const std::string &) { return false; });
   opt.continuum.grain_diameter = 0.001;
-  EXPECT_NE(coupler::grid_of_run(opt, 3, 100, problem).find("cell 0.004 = 4 mean grain diameters"), std::string::npos);
+  EXPECT_NE(coupler::grid_of_run(opt, 3, 100, lo, hi, problem).find("cell 0.004 = 4 mean grain diameters"), std::string::npos);
   EXPECT_EQ(problem, "");
   opt = coupler::parse_fix_options({"adaptive", "10"}, 3, 1, [](const std::string &) { return false; });
-  EXPECT_THROW(coupler::grid_of_run(opt, 3, 0, problem), coupler::OptionError);
+  EXPECT_THROW(coupler::grid_of_run(opt, 3, 0, lo, hi, problem), coupler::OptionError);
+}
+
+// A silo whose walls x = 0 and 0.32 the continuum touches, in a box 2 mm wider on each side: the
+// cell chosen from 2 mm grains (6 d = 0.012) becomes 0.32 / 27, and both walls are node planes.
+TEST(DemCoupling, TouchedWallsLieOnNodePlanes) {
+  auto opt = coupler::parse_fix_options({"adaptive", "10", "container", "0", "0.32", "0", "INF", "touch", "xlo",
+                                         "touch", "xhi"},
+                                        2, 1, [](const std::string &) { return false; });
+  opt.continuum.grain_diameter = 0.002;
+  const double lo[3] = {-0.004, -0.1, -0.5}, hi[3] = {0.324, 2.0, 0.5};
+  std::string problem;
+  const std::string line = coupler::grid_of_run(opt, 2, 1000, lo, hi, problem);
+  EXPECT_NEAR(opt.cell, 0.32 / 27, 1e-15);
+  EXPECT_NE(line.find("fitted to the x width 0.32 the continuum touches: 27 cells"), std::string::npos) << line;
+  EXPECT_EQ(line.find("warning"), std::string::npos) << line;
+  const auto grid = coupler::run_grid<2>(opt, lo, hi);
+  for (const double wall : {0.0, 0.32}) {
+    const double nodes = (wall - grid.origin[0]) / grid.dx;
+    EXPECT_NEAR(nodes, std::round(nodes), 1e-9) << "wall " << wall;
+  }
+  EXPECT_LE(grid.origin[0], lo[0] - coupler::kGridPad * grid.dx + 1e-15);    // still pads the box
+  EXPECT_GT(grid.origin[0], lo[0] - (coupler::kGridPad + 1) * grid.dx);
+  EXPECT_NEAR(grid.origin[1], lo[1] - coupler::kGridPad * grid.dx, 1e-15);  // y: no touched face, from the box
+  EXPECT_GE(grid.origin[0] + (grid.dims[0] - 1) * grid.dx, hi[0] + coupler::kGridPad * grid.dx - 1e-12);
+
+  // a cell given on the line is kept, with a warning that names the fix
+  opt = coupler::parse_fix_options({"cell", "0.012", "adaptive", "10", "container", "0", "0.32", "0", "INF", "touch",
+                                    "xlo", "touch", "xhi"},
+                                   2, 1, [](const std::string &) { return false; });
+  opt.continuum.grain_diameter = 0.002;
+  const std::string given = coupler::grid_of_run(opt, 2, 1000, lo, hi, problem);
+  EXPECT_EQ(opt.cell, 0.012);
+  EXPECT_NE(given.find("warning: the container's x faces the continuum touches are 26.67 cells apart"),
+            std::string::npos)
+      << given;
+  EXPECT_NE(given.find("(e.g. 0.0118519)"), std::string::npos) << given;
+}
+
+TEST(DemCoupling, CellDividingIsNearestTheNominalCell) {
+  EXPECT_EQ(coupler::cell_dividing(0.012, {}), 0.012);
+  EXPECT_NEAR(coupler::cell_dividing(0.012, {{0, 0.32}}), 0.32 / 27, 1e-15);
+  EXPECT_NEAR(coupler::cell_dividing(0.012, {{0, 0.18}}), 0.012, 1e-15);
+  // a square section: one cell for both
+  EXPECT_NEAR(coupler::cell_dividing(0.01, {{0, 0.2}, {1, 0.2}}), 0.01, 1e-15);
+  // 0.3 and 0.2 wide: 0.1 / n cells divide both; 0.0125 = 0.1 / 8 is nearest 0.012
+  EXPECT_NEAR(coupler::cell_dividing(0.012, {{0, 0.3}, {1, 0.2}}), 0.0125, 1e-15);
 }
 
 }    // namespace

@@ -222,7 +222,7 @@ void FixHybridMPMLiggghts::connect()
   // the grid: the fix line's cell, or one chosen from the grains (and the oracle's defaults from it)
   std::string problem;
   try {
-    say("fix hybrid/mpm: " + coupler::grid_of_run(*opt, 3, gg.count, problem));
+    say("fix hybrid/mpm: " + coupler::grid_of_run(*opt, 3, gg.count, domain->boxlo, domain->boxhi, problem));
   } catch (const coupler::OptionError &e) {
     error->all(FLERR, kept("Illegal fix hybrid/mpm command: " + std::string(e.what())));
   }

@@ -14,6 +14,7 @@
 
 #include "domain.h"
 
+#include "coupler/fix_options.hpp"
 #include "coupler/grid_geometry.hpp"
 
 #include <string>
@@ -27,10 +28,10 @@ using Vec3 = Eigen::Matrix<double, 3, 1>;
 // SpecialMessages): the text must outlive the call, so the fix's messages are kept for good
 const char *kept(const std::string &text);
 
-// the MPM grid over the box (both programs build it from the box and the cell size)
-inline coupler::GridGeometry<3> box_grid(const Domain *domain, double cell)
+// the MPM grid over the box (both programs build it from the box, the cell and the touched faces)
+inline coupler::GridGeometry<3> box_grid(const Domain *domain, const coupler::FixOptions &options)
 {
-  return coupler::padded_grid<3>(Eigen::Map<const Vec3>(domain->boxlo), Eigen::Map<const Vec3>(domain->boxhi), cell);
+  return coupler::run_grid<3>(options, domain->boxlo, domain->boxhi);
 }
 
 }    // namespace liggghts_hybrid

@@ -69,7 +69,7 @@ void FixHybridMPMLiggghts::compute_zones()
       if (r->match(x[0], x[1], x[2])) return true;
     return false;
   };
-  const coupler::GridGeometry<3> grid = box_grid(domain, opt->cell);
+  const coupler::GridGeometry<3> grid = box_grid(domain, *opt);
   zones = coupler::zones_from_regions<3>(grid, Eigen::Map<const Vec3>(domain->boxlo),
                                          Eigen::Map<const Vec3>(domain->boxhi), opt->hybrid_width, inside);
   if (opt->continuum_regions.empty()) std::fill(zones.begin(), zones.end(), coupler::kDiscrete);

@@ -25,6 +25,8 @@ Scene coupled_scene(const coupler::Hello& hello) {
     scene.grid.upper[a] = hello.box_hi[a];
   }
   scene.grid.cell_size = hello.cell;
+  // the nodes lie on the container faces the continuum touches, as the DEM side's grid's do
+  scene.grid.node_plane = coupler::touched_walls(c.container_lo, c.container_hi, c.touched_faces);
   scene.grid.walls = c.wall_contact == coupler::kWallSticky ? Contact::Sticky
                      : c.wall_contact == coupler::kWallFriction ? Contact::Friction
                                                                  : Contact::Slip;

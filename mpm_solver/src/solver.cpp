@@ -54,7 +54,7 @@ Solver<D>::Solver(const Scene& scene) : scene_(scene) {
     throw UserError("[grid] upper must exceed lower by at least one cell_size on every axis");
   const double cells = ((upper - lower) / scene.grid.cell_size).array().ceil().prod();
   if (cells > 2e9) throw UserError("[grid] has " + std::to_string(cells) + " cells; increase cell_size");
-  grid_ = Grid<D>(lower, upper, scene.grid.cell_size);
+  grid_ = Grid<D>(lower, upper, scene.grid.cell_size, scene.grid.node_plane);
   gravity_ = take<D>(scene.gravity);
 
   for (const auto& m : scene.materials) materials_.emplace_back(m);

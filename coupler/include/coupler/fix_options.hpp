@@ -4,6 +4,7 @@
 // a host's fix hands its keyword/value words to parse_fix_options and turns an OptionError
 // into its own input error ("Illegal fix hybrid/mpm command: " + what()).
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "coupler/dem_timestep.hpp"
+#include "coupler/grid_geometry.hpp"
 #include "coupler/material_file.hpp"
 #include "coupler/protocol.hpp"
 #include "coupler/rezone_log.hpp"
@@ -67,6 +69,19 @@ struct FixOptions {
   }
 };
 
+/// The planes of the container faces the continuum touches (coupler::touched_walls of the
+/// container_edge faces: what make_hello sends, so the MPM's grid gets the same).
+std::array<double, 3> touched_walls(const FixOptions &options, const double box_lo[3], const double box_hi[3]);
+
+/// The MPM grid of a coupled run over the DEM box: the DEM side's transfers and zone map use it,
+/// the MPM process builds the same from the handshake (mpm::coupled_scene), so node numbers agree.
+template <int D>
+GridGeometry<D> run_grid(const FixOptions &options, const double box_lo[3], const double box_hi[3]) {
+  return padded_grid<D>(Eigen::Map<const Eigen::Matrix<double, D, 1>>(box_lo),
+                        Eigen::Map<const Eigen::Matrix<double, D, 1>>(box_hi), options.cell,
+                        touched_walls(options, box_lo, box_hi));
+}
+
 /// Names of the container faces in the order of face_bit (the values of `touch`).
 inline constexpr const char *kFaceNames[6] = {"xlo", "xhi", "ylo", "yhi", "zlo", "zhi"};
 
@@ -100,17 +115,33 @@ GrainGrid grid_from_grains(int dimension, double grain_diameter, double packing,
 /// random packing of disks (0.82) or spheres (0.60).
 double grid_packing(const FixOptions &options, int dimension);
 
+/// A width of the container the continuum touches on both sides (`touch` of both faces of
+/// `axis`): for both faces to lie on node planes, the cell must divide it.
+struct TouchedSpan {
+  int axis = 0;
+  double width = 0;
+};
+std::vector<TouchedSpan> touched_spans(const FixOptions &options, int dimension, const double box_lo[3],
+                                       const double box_hi[3]);
+
+/// The cell nearest `nominal` (within a quarter of it) that divides every span, else the one
+/// nearest it that divides the first span; `nominal` if there are none.
+double cell_dividing(double nominal, const std::vector<TouchedSpan> &spans);
+
 /// Completes the options once the grains are known: without `cell` on the fix line the cell and
-/// the points per cell come from the grains' mean diameter (grid_from_grains; a cell restored
-/// from a restart file is kept), then the oracle's defaults that follow from the cell. Returns
-/// the line that says what was chosen and how many grains a point carries. Throws OptionError.
-std::string resolve_grid(FixOptions &options, int dimension, double grain_diameter);
+/// the points per cell come from the grains' mean diameter (grid_from_grains, then
+/// cell_dividing the spans; a cell restored from a restart file is kept), then the oracle's
+/// defaults that follow from the cell. Returns the line that says what was chosen and how many
+/// grains a point carries, with a warning if the cell does not divide a span. Throws OptionError.
+std::string resolve_grid(FixOptions &options, int dimension, double grain_diameter,
+                         const std::vector<TouchedSpan> &spans = {});
 
 /// The grid of a host's first run over a group of `grains` grains, whose mean diameter the options
 /// then hold (the keyword diameter's or the grains'): resolve_grid, then the check that adaptive
 /// zones' cells hold several grains (kSmallestCellInGrains). Returns resolve_grid's line; throws
 /// OptionError for a bad option (an "Illegal fix" error) and sets `problem` for too small a cell.
-std::string grid_of_run(FixOptions &options, int dimension, std::int64_t grains, std::string &problem);
+std::string grid_of_run(FixOptions &options, int dimension, std::int64_t grains, const double box_lo[3],
+                        const double box_hi[3], std::string &problem);
 
 /// rezone_log's value (OptionError for another).
 RezoneLog rezone_log_option(const std::string &value);

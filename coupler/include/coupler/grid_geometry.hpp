@@ -3,8 +3,11 @@
 // where node i sits and how nodes are numbered. The MPM grid stores fields on
 // it; the DEM side uses it to transfer grains to the same nodes.
 #include <Eigen/Core>
+#include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <limits>
 
 namespace coupler {
 
@@ -68,6 +71,40 @@ GridGeometry<D> padded_grid(const Eigen::Matrix<double, D, 1>& lower, const Eige
   for (int a = 0; a < D; ++a)
     g.dims[a] = static_cast<int>(std::ceil((upper[a] - lower[a]) / cell)) + 2 * kGridPad + 1;
   return g;
+}
+
+/// A face of the box, as a bit of a face mask (ContinuumSettings::touched_faces, the fix's
+/// `touch`): side 0 is the lower face of the axis, 1 the upper.
+inline constexpr std::uint32_t face_bit(int axis, int side) { return 1u << (2 * axis + side); }
+
+/// Per axis, the plane of the container's faces the continuum may touch (`touched`, face_bit):
+/// the lower face's if it is touched, else the upper face's, else NaN (none). The grid lays its
+/// nodes on these planes (padded_grid with walls).
+inline std::array<double, 3> touched_walls(const double container_lo[3], const double container_hi[3],
+                                           std::uint32_t touched) {
+  std::array<double, 3> wall;
+  for (int a = 0; a < 3; ++a) {
+    wall[a] = std::numeric_limits<double>::quiet_NaN();
+    if (touched & face_bit(a, 0)) wall[a] = container_lo[a];
+    else if (touched & face_bit(a, 1)) wall[a] = container_hi[a];
+    if (!std::isfinite(wall[a])) wall[a] = std::numeric_limits<double>::quiet_NaN();
+  }
+  return wall;
+}
+
+/// padded_grid whose nodes are laid so that on each axis with a finite `wall[a]` (touched_walls)
+/// that plane is a plane of nodes: node 0 moves down by less than a cell. The MPM applies a wall
+/// at the nodes on or beyond it, so a face inside a cell would stand up to a cell past the
+/// grains' wall, and the cell across it (discrete, its centre beyond the face) would turn the
+/// points that drift into it into rests every rezone (docs/design.md 5.1, "The grid and the
+/// walls the continuum touches").
+template <int D>
+GridGeometry<D> padded_grid(const Eigen::Matrix<double, D, 1>& lower, const Eigen::Matrix<double, D, 1>& upper,
+                            double cell, const std::array<double, 3>& wall) {
+  Eigen::Matrix<double, D, 1> start = lower;
+  for (int a = 0; a < D; ++a)
+    if (std::isfinite(wall[a])) start[a] = wall[a] - std::ceil((wall[a] - lower[a]) / cell - 1e-9) * cell;
+  return padded_grid<D>(start, upper, cell);
 }
 
 }  // namespace coupler

@@ -170,10 +170,6 @@ std::vector<double> squared_distance_transform(const Eigen::Matrix<int, D, 1>& c
   return g;
 }
 
-/// A face of the box, as a bit of a face mask (ContinuumSettings::touched_faces, the fix's
-/// `touch`): side 0 is the lower face of the axis, 1 the upper.
-inline constexpr std::uint32_t face_bit(int axis, int side) { return 1u << (2 * axis + side); }
-
 /// Cells whose centre lies outside the box [lower, upper] (the padding of padded_grid, or the
 /// part of the box beyond the continuum's container), by the faces they lie beyond:
 ///   boundary: beyond a face the oracle counts as a surface of the material (a discrete

@@ -2,7 +2,9 @@
 // Dense background grid of nodes. The grid extends kPad cells past the user's
 // domain on every side so that the quadratic stencil of any point inside the
 // domain stays on the grid.
+#include <array>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "coupler/grid_geometry.hpp"
@@ -13,6 +15,7 @@ namespace mpm {
 template <int D>
 struct Grid : coupler::GridGeometry<D> {
   static constexpr int kPad = coupler::kGridPad;
+  static constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
 
   Vec<D> domain_lower = Vec<D>::Zero(), domain_upper = Vec<D>::Zero();
   std::vector<double> mass;      ///< node mass
@@ -20,7 +23,13 @@ struct Grid : coupler::GridGeometry<D> {
 
   Grid() = default;
   Grid(const Vec<D>& lower, const Vec<D>& upper, double cell)
-      : coupler::GridGeometry<D>(coupler::padded_grid<D>(lower, upper, cell)), domain_lower(lower), domain_upper(upper) {
+      : Grid(lower, upper, cell, {kNone, kNone, kNone}) {}
+  /// The grid over the domain [lower, upper]; on each axis with a finite node_plane[a] its
+  /// nodes lie on that plane (coupler::padded_grid).
+  Grid(const Vec<D>& lower, const Vec<D>& upper, double cell, const std::array<double, 3>& node_plane)
+      : coupler::GridGeometry<D>(coupler::padded_grid<D>(lower, upper, cell, node_plane)),
+        domain_lower(lower),
+        domain_upper(upper) {
     mass.assign(this->num_nodes(), 0.0);
     momentum.assign(this->num_nodes(), Vec<D>::Zero());
   }
