@@ -177,15 +177,27 @@ def main() -> int:
     ap.add_argument("--oracles", default=",".join(map(str, ORACLES)),
                     help="oracle intervals to run (at the default exchange interval)")
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "adaptive_accuracy.md")
+    ap.add_argument("--keep", action="store_true",
+                    help="keep the rows of the scenes not run from the JSON (each row has its date and command)")
     args = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     scenes = args.scenes.split(",")
-    unknown = set(scenes) - {"collapse_2d", "silo_2d", "collapse_3d", "silo_3d"}
+    unknown = set(scenes) - set(SCENE_ORDER)
     if unknown:
         ap.error(f"unknown scene(s) {', '.join(sorted(unknown))}")
     pairs = [(EXCHANGE_DEFAULT, ORACLE_DEFAULT)] if args.quick else \
         numerics([int(v) for v in args.exchanges.split(",")], [int(v) for v in args.oracles.split(",")])
     width = {2.0: 0.05 if args.quick else 0.1, 0.5: 0.1 if args.quick else 0.2}
+    path = args.out.with_suffix(".json")
+    kept = []
+    if args.keep and path.exists():    # rows of other scenes, dated as they were measured
+        saved = json.loads(path.read_text())
+        # files written before rows carried their command name it only in the report's first line
+        old_report = args.out.read_text().split("`") if args.out.exists() else []
+        before = old_report[1] if len(old_report) > 2 else ""
+        kept = [dict(r, date=r.get("date", saved["date"]), command=r.get("command", before))
+                for r in saved["rows"] if r["scene"].split(" ")[0] not in scenes]
+    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     rows = []
     with tempfile.TemporaryDirectory(prefix="adaptive_accuracy_") as tmp:
         work = Path(tmp)
@@ -196,22 +208,32 @@ def main() -> int:
                                                ("silo_3d", lambda: silo_3d(work, args.np_))) if name in scenes]
         for name, job in jobs:    # a scene that fails is reported; the others' figures are kept
             try:
-                rows += job()
+                rows += [dict(r, date=stamp, command=command(args)) for r in job()]
             except Exception as e:    # noqa: BLE001 - the bench goes on, the file says what failed
                 print(f"{name} failed: {e}", flush=True)
-                rows.append(dict(scene=name, failed=str(e)[:2000]))
-            write(args, rows)
-    write(args, rows)
+                rows.append(dict(scene=name, failed=str(e)[:2000], date=stamp, command=command(args)))
+            write(args, kept + rows)
+    write(args, kept + rows)
     print(f"wrote {args.out}")
     return 0
 
 
+def command(args) -> str:
+    return (f"bench/adaptive_accuracy.py{' --quick' if args.quick else ''} --np {args.np_} --scenes {args.scenes}"
+            f"{'' if args.quick else f' --exchanges {args.exchanges} --oracles {args.oracles}'}")
+
+
+SCENE_ORDER = ("collapse_2d", "silo_2d", "collapse_3d", "silo_3d")
+
+
 def write(args, rows: list[dict]) -> None:
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    order = {name: k for k, name in enumerate(SCENE_ORDER)}
+    rows = sorted(rows, key=lambda r: order.get(r["scene"].split(" ")[0], len(order)))    # stable: kept rows first
+    runs = sorted({(r.get("date", stamp), r.get("command", command(args))) for r in rows})
     lines = ["# Adaptive hybrid against pure LAMMPS DEM: accuracy and independence of the numerics", "",
-             f"`bench/adaptive_accuracy.py{' --quick' if args.quick else ''} --np {args.np_} --scenes {args.scenes}"
-             f"{'' if args.quick else f' --exchanges {args.exchanges} --oracles {args.oracles}'}`, "
-             f"{stamp}; {args.np_} LAMMPS rank(s) for DEM and hybrid alike, plus one MPM process for the hybrid, "
+             "; ".join(f"`{c}`, {d}" for d, c in runs) + f" (each row's date in the JSON); "
+             f"{args.np_} LAMMPS rank(s) for DEM and hybrid alike, plus one MPM process for the hybrid, "
              "on a 2-core machine, side by side in one run. Errors are the hybrid's against the DEM from the same "
              "packing; the noise floor is the DEM from another packing against it (same measure). The hybrid "
              "runs with the fix's defaults (adaptive zones, pic 0) and the decks' material.", ""]
