@@ -102,7 +102,10 @@ def test_kill_9_of_either_side_stops_both_within_10_s_with_files_readable(hybrid
     assert row["outcome"] == "stopped_both", row["message"]
     assert row["seconds_to_exit"] <= fc.KILL_LIMIT, row
     assert "exited on signal 9 (Killed)" in row["message"], row
-    assert re.search(r"restart\.\d+\.bin ok; its \.mpm\.h5 ok; points\.h5 ok", row["message"]), row
+    # the newest restart with its MPM state, or (the MPM process killed between the two writes)
+    # without it and the previous restart's state readable
+    assert re.search(r"restart\.\d+\.bin ok; (its|not written; restart\.\d+\.bin's) \.mpm\.h5 ok; points\.h5 ok",
+                     row["message"]), row
 
 
 # ------------------------------------------------------------------ the committed table

@@ -711,15 +711,20 @@ def readable_files(ctx: Ctx) -> tuple[bool, str]:
             notes.append(f"{last.name} unreadable")
         else:
             notes.append(f"{last.name} ok")
-        state = Path(str(last) + ".mpm.h5")
-        if state.exists():
+        # The MPM process saves its state after LAMMPS has written the restart file: a kill
+        # between the two leaves the newest restart without one, and the newest complete pair
+        # is the previous restart (a run continues from that; mpm_state names the file).
+        paired = [r for r in restarts if Path(str(r) + ".mpm.h5").exists()]
+        if paired:
+            state = Path(str(paired[-1]) + ".mpm.h5")
+            whose = "its" if paired[-1] == last else f"not written; {paired[-1].name}'s"
             try:
                 with h5py.File(state, "r") as f:
                     list(f.keys())
-                notes.append("its .mpm.h5 ok")
+                notes.append(f"{whose} .mpm.h5 ok")
             except OSError as e:
                 ok = False
-                notes.append(f"its .mpm.h5 unreadable ({e})")
+                notes.append(f"{whose} .mpm.h5 unreadable ({e})")
     else:
         notes.append("no restart file yet")
     h5 = ctx.dir / "frames" / "points.h5"
