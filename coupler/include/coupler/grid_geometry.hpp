@@ -77,17 +77,20 @@ GridGeometry<D> padded_grid(const Eigen::Matrix<double, D, 1>& lower, const Eige
 /// `touch`): side 0 is the lower face of the axis, 1 the upper.
 inline constexpr std::uint32_t face_bit(int axis, int side) { return 1u << (2 * axis + side); }
 
+/// No wall plane on an axis (touched_walls, padded_grid with walls).
+inline constexpr double kNoWall = std::numeric_limits<double>::quiet_NaN();
+inline constexpr std::array<double, 3> kNoWalls = {kNoWall, kNoWall, kNoWall};
+
 /// Per axis, the plane of the container's faces the continuum may touch (`touched`, face_bit):
 /// the lower face's if it is touched, else the upper face's, else NaN (none). The grid lays its
 /// nodes on these planes (padded_grid with walls).
 inline std::array<double, 3> touched_walls(const double container_lo[3], const double container_hi[3],
                                            std::uint32_t touched) {
-  std::array<double, 3> wall;
+  std::array<double, 3> wall = kNoWalls;
   for (int a = 0; a < 3; ++a) {
-    wall[a] = std::numeric_limits<double>::quiet_NaN();
     if (touched & face_bit(a, 0)) wall[a] = container_lo[a];
     else if (touched & face_bit(a, 1)) wall[a] = container_hi[a];
-    if (!std::isfinite(wall[a])) wall[a] = std::numeric_limits<double>::quiet_NaN();
+    if (!std::isfinite(wall[a])) wall[a] = kNoWall;
   }
   return wall;
 }

@@ -4,7 +4,6 @@
 // domain stays on the grid.
 #include <array>
 #include <cmath>
-#include <limits>
 #include <vector>
 
 #include "coupler/grid_geometry.hpp"
@@ -15,7 +14,6 @@ namespace mpm {
 template <int D>
 struct Grid : coupler::GridGeometry<D> {
   static constexpr int kPad = coupler::kGridPad;
-  static constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
 
   Vec<D> domain_lower = Vec<D>::Zero(), domain_upper = Vec<D>::Zero();
   std::vector<double> mass;      ///< node mass
@@ -23,7 +21,7 @@ struct Grid : coupler::GridGeometry<D> {
 
   Grid() = default;
   Grid(const Vec<D>& lower, const Vec<D>& upper, double cell)
-      : Grid(lower, upper, cell, {kNone, kNone, kNone}) {}
+      : Grid(lower, upper, cell, coupler::kNoWalls) {}
   /// The grid over the domain [lower, upper]; on each axis with a finite node_plane[a] its
   /// nodes lie on that plane (coupler::padded_grid).
   Grid(const Vec<D>& lower, const Vec<D>& upper, double cell, const std::array<double, 3>& node_plane)

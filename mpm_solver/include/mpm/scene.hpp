@@ -2,10 +2,11 @@
 // A scene: everything a run needs, in SI units, with defaults for everything
 // a config file does not set. Filled by load_scene() (config.hpp) or by code.
 #include <array>
-#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include "coupler/grid_geometry.hpp"
 
 namespace mpm {
 
@@ -86,14 +87,12 @@ struct Outlet {
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};
 };
 
-inline constexpr double kNoPlane = std::numeric_limits<double>::quiet_NaN();
-
 struct GridSpec {
   double cell_size = 0;  ///< dx, m (required)
   Vec3 lower{0, 0, 0}, upper{0, 0, 0};  ///< domain; material outside it is an error
   /// Per axis, a plane the nodes are laid on (a coupled run's touched container face,
   /// coupler::touched_walls); NaN: the nodes start at `lower`.
-  Vec3 node_plane{kNoPlane, kNoPlane, kNoPlane};
+  Vec3 node_plane = coupler::kNoWalls;
   /// Condition the domain faces impose, like a box container around the scene.
   Contact walls = Contact::Slip;
   double wall_friction = 0.0;
