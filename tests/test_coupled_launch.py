@@ -47,10 +47,11 @@ def deck_copy(tmp_path: Path, edit=None, extra: str = "") -> Path:
     return deck
 
 
-def launch(*args: str, timeout: float = 120, cwd: Path | None = None) -> tuple[subprocess.CompletedProcess, float]:
+def launch(*args: str, timeout: float = 120, cwd: Path | None = None,
+           extra_env: dict | None = None) -> tuple[subprocess.CompletedProcess, float]:
     t0 = time.monotonic()
     proc = subprocess.run([sys.executable, str(LAUNCH), *args], capture_output=True, text=True, timeout=timeout,
-                          env=env(), cwd=cwd)
+                          env=dict(env(), **(extra_env or {})), cwd=cwd)
     return proc, time.monotonic() - t0
 
 
@@ -84,11 +85,29 @@ def test_lmp_hybrid_handshake_steps_and_clean_finish(tmp_path, hybrid_programs, 
     assert "coupled run finished at LAMMPS step 200 after 20 exchange(s)" in text
     lammps_log = log.read_text()
     assert "fix hybrid/mpm: handshake ok with the MPM process (1 rank(s)): mpm_solver" in lammps_log
+    assert re.search(r"mpm_solver \S+ \(pid \d+, 1 OpenMP thread\) ready", lammps_log), lammps_log
     assert f"protocol {PROTOCOL}" in lammps_log and "cell 0.01, model drucker_prager" in lammps_log
     assert "fix hybrid/mpm: finished the coupled run after 20 exchange(s)" in lammps_log
     # f_couple (thermo column) counts the exchanges
     last = [ln.split() for ln in lammps_log.splitlines() if re.match(r"^\s+200\s+630\s", ln)]
     assert last and float(last[-1][-1]) == 20.0, lammps_log
+
+
+@pytest.mark.parametrize("policy, expected", [(None, "passive"), ("active", "active")])
+def test_threaded_mpm_process_sleeps_when_idle_unless_told_otherwise(tmp_path, hybrid_programs, policy, expected):
+    """A threaded MPM process whose OpenMP threads spin when idle takes the cores from LAMMPS's
+    steps (mpm_solver/src/main.cpp): it restarts itself with OMP_WAIT_POLICY=passive, and keeps a
+    policy the user set."""
+    deck = deck_copy(tmp_path)
+    log = tmp_path / "log.lammps"
+    extra = {"OMP_NUM_THREADS": "2"}
+    if policy is not None:
+        extra["OMP_WAIT_POLICY"] = policy
+    proc, _ = launch("-np", "1", str(deck), "-var", "nsteps", "20", "-var", "every", "10", "-log", str(log),
+                     extra_env=extra)
+    assert proc.returncode == 0, output(proc)
+    assert re.search(rf"mpm_solver \S+ \(pid \d+, 2 OpenMP threads, OMP_WAIT_POLICY={expected}\) ready",
+                     log.read_text()), log.read_text()
 
 
 @pytest.mark.parametrize("np_", [1, 2])

@@ -2,6 +2,7 @@
 
 #include <cxxabi.h>
 #include <mpi.h>
+#include <omp.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/resource.h>
@@ -169,6 +170,16 @@ class EndOfJobBarrier {
   std::atomic<bool> done_{false};
   std::thread thread_;
 };
+
+/// The MPM process's OpenMP threads for the handshake line, with their wait policy when there
+/// are several (main.cpp makes it passive unless the environment sets it: idle threads that
+/// spin take the cores from LAMMPS's steps).
+std::string threads_text() {
+  const int n = omp_get_max_threads();
+  if (n == 1) return "1 OpenMP thread";
+  const char* policy = std::getenv("OMP_WAIT_POLICY");
+  return std::to_string(n) + " OpenMP threads, OMP_WAIT_POLICY=" + (policy != nullptr ? policy : "unset");
+}
 
 /// The demangled name of a type, for messages.
 std::string type_name(const std::type_info& type) {
@@ -565,7 +576,7 @@ int run_coupled(const CoupledOptions& opt) {
     try {
       coupler::Hello hello;
       const std::string greeting = std::string("mpm_solver ") + coupler::release_version() + " (pid " +
-                                   std::to_string(getpid()) + ") ready";
+                                   std::to_string(getpid()) + ", " + threads_text() + ") ready";
       auto link = coupler::connect_mpm(local, opt.hello_timeout, hello, greeting, &check_hello, end_of_job.flag());
       host = link->peer_name();
       say(opt, "handshake ok with " + link->peer_info() + " on " + std::to_string(hello.dem_ranks) +
