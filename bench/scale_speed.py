@@ -31,7 +31,12 @@ Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collap
 `hybrid 2`, `hcell 0`): the DEM and the adaptive hybrid collapse from the same cached column to
 rest; error = the final surface's RMS over H0, and the runout's relative error.
 
-Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--collapse-sizes 50,100,200] [--keep]
+Silo rows may also run the hybrid at other zone depths (--depths, grain diameters) against the same
+DEM run: the error against wall time as the continuum comes closer to the free surface, the floor
+and the orifice's region (the third panel of the plot).
+
+Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--collapse-sizes 50,100,200]
+                            [--depths 12,24] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
 Writes bench/results/scale_speed.json (a list `rows`), scale_speed.md and scale_speed.png; the notes
 below the marker in scale_speed.md are kept (hgtools.report).
@@ -139,22 +144,31 @@ def speeds(dem, hyb, dem_cpu: float, hyb_cpu: float) -> dict:
                 hybrid_wall_s=hyb.wall_time, dem_loop_s=dem.loop_time, hybrid_loop_s=hyb.loop_time)
 
 
-def run_silo(n: int, np_: int, tdis: float, seed: int, hcell: str, threads: int, work: Path) -> dict:
+def run_silo(n: int, np_: int, tdis: float, seed: int, hcell: str, threads: int, work: Path,
+             depths: tuple[float, ...] = ()) -> list[dict]:
+    """The DEM and the hybrid at the fix's zones, then the hybrid at each of `depths` (the zone
+    oracle's depth, grain diameters) against the same DEM run: one row each."""
     size = silo_size(n)
     common = dict(**size, np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
     prepare_silo(size["width"], size["height"], D, seed, work / f"prep_{n}", np_=np_, timeout=4 * 3600)  # cached
     dem, dem_cpu = timed(run_dem_silo, out=work / f"dem_{n}", **common)
-    hyb, hyb_cpu = timed(run_dem_silo, out=work / f"hybrid_{n}", hybrid_vars={"hcell": hcell}, **common)
-    row = dict(scene="silo_2d", grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=ORIFICE,
-               error=hyb.rate / dem.rate - 1, runout_error=None, cores=np_, lammps_ranks=np_, mpm_threads=threads,
-               rate_dem=dem.rate, rate_hybrid=hyb.rate, grain_rate_error=hyb.grain_rate / dem.grain_rate - 1,
-               mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=hcell,
-               **speeds(dem, hyb, dem_cpu, hyb_cpu),
-               **cost_model(dem.loop_time, work / f"dem_{n}" / "log.lammps", work / f"hybrid_{n}" / "log.lammps",
-                            threads))
-    print(f"silo W = {n} d: {dem.grains} grains, speedup {row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x)"
-          f", rate {row['error']:+.1%}, continuum {row['continuum_share']:.0%}", flush=True)
-    return row
+    rows = []
+    for depth in (None, *depths):
+        name = f"hybrid_{n}" if depth is None else f"hybrid_{n}_depth{depth:g}"
+        hvars = {"hcell": hcell} if depth is None else {"hcell": hcell, "hdepth": f"{depth * D:.9g}"}
+        hyb, hyb_cpu = timed(run_dem_silo, out=work / name, hybrid_vars=hvars, **common)
+        row = dict(scene="silo_2d", grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=ORIFICE,
+                   depth_d=depth, error=hyb.rate / dem.rate - 1, runout_error=None, cores=np_, lammps_ranks=np_,
+                   mpm_threads=threads, rate_dem=dem.rate, rate_hybrid=hyb.rate,
+                   grain_rate_error=hyb.grain_rate / dem.grain_rate - 1,
+                   mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=hcell,
+                   **speeds(dem, hyb, dem_cpu, hyb_cpu),
+                   **cost_model(dem.loop_time, work / f"dem_{n}" / "log.lammps", work / name / "log.lammps", threads))
+        print(f"silo W = {n} d{'' if depth is None else f', depth {depth:g} d'}: {dem.grains} grains, speedup "
+              f"{row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), rate {row['error']:+.1%}, "
+              f"continuum {row['continuum_share']:.0%}", flush=True)
+        rows.append(row)
+    return rows
 
 
 def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path) -> dict:
@@ -191,7 +205,8 @@ def table(rows: list[dict]) -> list[str]:
             error += f" (grains {r['grain_rate_error']:+.1%})"
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
-        out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "
+        depth = f", depth {r['depth_d']:g}" if r.get("depth_d") is not None else ""
+        out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']}{depth} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
                    f"{cpu} | {r['predicted_speedup']:.2f}x | {error} | {runout} | {r['coupling_s']:.1f} "
                    f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) |")
@@ -202,9 +217,10 @@ def plot(rows: list[dict], path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(16, 4.2))
     for (scene, marker), cores in product((("silo_2d", "o"), ("collapse_2d", "^")), sorted({r["cores"] for r in rows})):
-        mine = sorted((r for r in rows if r["scene"] == scene and r["cores"] == cores), key=lambda r: r["grains"])
+        mine = sorted((r for r in rows if r["scene"] == scene and r["cores"] == cores and r.get("depth_d") is None),
+                      key=lambda r: r["grains"])
         if not mine:
             continue
         g = [r["grains"] for r in mine]
@@ -220,8 +236,28 @@ def plot(rows: list[dict], path: Path) -> None:
     ax.legend(fontsize=8)
     bx.set(xlabel="t (s; silo: since the opening)", ylabel="continuum share of the material", ylim=(0, 1))
     bx.legend(fontsize=8)
+    front(rows, cx)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
+
+
+def front(rows: list[dict], ax) -> None:
+    """Error against wall time for each silo size run at several depths: the DEM at zero error,
+    the hybrid at each depth (the fix's default marked), on the same cores."""
+    for (n, cores) in sorted({(r["width_d"], r["cores"]) for r in rows if r["scene"] == "silo_2d"
+                              and r.get("depth_d") is not None}):
+        mine = [r for r in rows if r["scene"] == "silo_2d" and r["width_d"] == n and r["cores"] == cores
+                and not r.get("pinned")]
+        mine.sort(key=lambda r: r["hybrid_wall_s"])
+        line, = ax.plot([r["hybrid_wall_s"] for r in mine], [100 * abs(r["error"]) for r in mine], "o-",
+                        label=f"hybrid, W = {n} d, {cores} core(s)")
+        ax.plot([mine[0]["dem_wall_s"]], [0.0], "s", color=line.get_color(), label=f"LAMMPS DEM, W = {n} d")
+        for r in mine:
+            label = "default" if r.get("depth_d") is None else f"depth {r['depth_d']:g} d"
+            ax.annotate(label, (r["hybrid_wall_s"], 100 * abs(r["error"])), textcoords="offset points",
+                        xytext=(4, 4), fontsize=8)
+    ax.set(xscale="log", yscale="symlog", xlabel="wall time, s", ylabel="|discharge rate error| (%)")
+    ax.legend(fontsize=8)
 
 
 def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
@@ -245,6 +281,9 @@ def main() -> int:
     ap.add_argument("--tdis", type=float, default=0.4, help="the silo's discharge time after the opening, s")
     ap.add_argument("--seed", type=int, default=12345)
     ap.add_argument("--hcell", default="0", help="the hybrid's cell, m, or 0 (the fix's, from the grains)")
+    ap.add_argument("--depths", default="",
+                    help="silo: also run the hybrid with these zone depths, grain diameters (e.g. '12,24'), "
+                         "against the same DEM run: the error against wall time")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of other (scene, size, cores) already in the JSON (each row has its date)")
     ap.add_argument("--pin", action="store_true",
@@ -266,19 +305,21 @@ def main() -> int:
         os.sched_setaffinity(0, set(range(a.np_)))
         os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
     sizes = [int(n) for n in a.sizes.split(",") if n]
-    rows = [run_silo(n, a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work) for n in sizes]
+    depths = tuple(float(x) for x in a.depths.split(",") if x)
+    rows = [r for n in sizes for r in run_silo(n, a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work, depths)]
     rows += [run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)
              for n in (int(n) for n in a.collapse_sizes.split(",") if n)]
     for r in rows:
         r["date"], r["pinned"] = stamp, a.pin
     if a.keep and path.exists():
-        key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False))    # noqa: E731
+        key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False), r.get("depth_d"))  # noqa: E731
         new = {key(r) for r in rows}
         old = [dict(r, date=r.get("date", json.loads(path.read_text())["date"]))
                for r in json.loads(path.read_text())["rows"] if key(r) not in new]
         rows = old + rows
     command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --collapse-sizes "
-               f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
+               f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
+               f"{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     path.write_text(json.dumps(dict(date=stamp, np=a.np_, command=command, rows=rows), indent=1))
     write(rows, command, stamp, a.out)
     return 0
