@@ -38,7 +38,8 @@ and the orifice's region (the third panel of the plot).
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--collapse-sizes 50,100,200]
                             [--depths 12,24] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
-Writes bench/results/scale_speed.json (a list `rows`), scale_speed.md and scale_speed.png; the notes
+Writes bench/results/scale_speed.json (a list `rows`, one per scene, size and cores at the fix's zones,
+and `depth_front`, the depth variants), scale_speed.md and scale_speed.png; the notes
 below the marker in scale_speed.md are kept (hgtools.report).
 """
 from __future__ import annotations
@@ -244,10 +245,9 @@ def plot(rows: list[dict], path: Path) -> None:
 def front(rows: list[dict], ax) -> None:
     """Error against wall time for each silo size run at several depths: the DEM at zero error,
     the hybrid at each depth (the fix's default marked), on the same cores."""
-    for (n, cores) in sorted({(r["width_d"], r["cores"]) for r in rows if r["scene"] == "silo_2d"
-                              and r.get("depth_d") is not None}):
-        mine = [r for r in rows if r["scene"] == "silo_2d" and r["width_d"] == n and r["cores"] == cores
-                and not r.get("pinned")]
+    silo = [r for r in rows if r["scene"] == "silo_2d" and not r.get("pinned")]
+    for (n, cores) in sorted({(r["width_d"], r["cores"]) for r in silo if r.get("depth_d") is not None}):
+        mine = [r for r in silo if r["width_d"] == n and r["cores"] == cores]
         mine.sort(key=lambda r: r["hybrid_wall_s"])
         line, = ax.plot([r["hybrid_wall_s"] for r in mine], [100 * abs(r["error"]) for r in mine], "o-",
                         label=f"hybrid, W = {n} d, {cores} core(s)")
@@ -258,6 +258,19 @@ def front(rows: list[dict], ax) -> None:
                         xytext=(4, 4), fontsize=8)
     ax.set(xscale="log", yscale="symlog", xlabel="wall time, s", ylabel="|discharge rate error| (%)")
     ax.legend(fontsize=8)
+
+
+def load(path: Path) -> tuple[dict, list[dict]]:
+    """The saved JSON and all its rows: those at the fix's zones, then the other depths."""
+    saved = json.loads(path.read_text())
+    return saved, saved["rows"] + saved.get("depth_front", [])
+
+
+def save(path: Path, rows: list[dict], **head) -> None:
+    """The JSON: `rows`, one per scene, size and cores at the fix's zones (the issue's table), and
+    `depth_front`, the silo's hybrid at other zone depths against the same DEM runs."""
+    path.write_text(json.dumps(dict(**head, rows=[r for r in rows if r.get("depth_d") is None],
+                                    depth_front=[r for r in rows if r.get("depth_d") is not None]), indent=1))
 
 
 def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
@@ -290,14 +303,16 @@ def main() -> int:
                     help="pin the runs to the first --np cores (DEM and hybrid, MPM process included, share them): "
                          "equal cores even where a waiting process would poll on a free core")
     ap.add_argument("--render", action="store_true",
-                    help="run nothing: rewrite the report and the plot from the JSON (after editing the notes)")
+                    help="run nothing: rewrite the report, the plot and the JSON's layout from the JSON "
+                         "(after editing the notes)")
     ap.add_argument("--work", type=Path, default=REPO / "runs" / "scale_speed")
     ap.add_argument("--out", type=Path, default=RESULTS / "scale_speed.md")
     a = ap.parse_args()
     path = a.out.with_suffix(".json")
     if a.render:
-        saved = json.loads(path.read_text())
-        write(saved["rows"], saved.get("command", ""), saved["date"], a.out)
+        saved, rows = load(path)
+        save(path, rows, **{k: v for k, v in saved.items() if k not in ("rows", "depth_front")})
+        write(rows, saved.get("command", ""), saved["date"], a.out)
         return 0
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     os.environ["OMP_NUM_THREADS"] = str(a.threads)    # the MPM process runs with what the model assumes
@@ -314,13 +329,13 @@ def main() -> int:
     if a.keep and path.exists():
         key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False), r.get("depth_d"))  # noqa: E731
         new = {key(r) for r in rows}
-        old = [dict(r, date=r.get("date", json.loads(path.read_text())["date"]))
-               for r in json.loads(path.read_text())["rows"] if key(r) not in new]
+        saved, saved_rows = load(path)
+        old = [dict(r, date=r.get("date", saved["date"])) for r in saved_rows if key(r) not in new]
         rows = old + rows
     command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --collapse-sizes "
                f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
                f"{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
-    path.write_text(json.dumps(dict(date=stamp, np=a.np_, command=command, rows=rows), indent=1))
+    save(path, rows, date=stamp, np=a.np_, command=command)
     write(rows, command, stamp, a.out)
     return 0
 
