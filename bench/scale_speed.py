@@ -33,10 +33,11 @@ rest; error = the final surface's RMS over H0, and the runout's relative error.
 
 Silo rows may also run the hybrid at other zone depths (--depths, grain diameters) against the same
 DEM run: the error against wall time as the continuum comes closer to the free surface, the floor
-and the orifice's region (the third panel of the plot).
+and the orifice's region (the third panel of the plot); --surface-depths moves it closer to the free
+surface only (fix keyword surface_depth), the floor and the orifice's region keeping the fix's depth.
 
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--collapse-sizes 50,100,200]
-                            [--depths 12,24] [--keep]
+                            [--depths 12,24] [--surface-depths 12] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
 Writes bench/results/scale_speed.json (a list `rows`, one per scene, size and cores at the fix's zones,
 and `depth_front`, the depth variants), scale_speed.md and scale_speed.png; the notes
@@ -145,27 +146,47 @@ def speeds(dem, hyb, dem_cpu: float, hyb_cpu: float) -> dict:
                 hybrid_wall_s=hyb.wall_time, dem_loop_s=dem.loop_time, hybrid_loop_s=hyb.loop_time)
 
 
+# the zone variants a silo row may run: key of the row -> deck variable, run name, label
+VARIANTS = {"depth_d": ("hdepth", "depth", "depth"), "surface_depth_d": ("hsurface", "surface", "surface depth")}
+
+
+def is_variant(r: dict) -> bool:
+    """A row of the hybrid at other zone depths than the fix's (the JSON's `depth_front`)."""
+    return any(r.get(key) is not None for key in VARIANTS)
+
+
+def variant_label(r: dict, unit: str = " d") -> str:
+    return ", ".join(f"{VARIANTS[key][2]} {r[key]:g}{unit}"
+                     for key in VARIANTS if r.get(key) is not None)
+
+
 def run_silo(n: int, np_: int, tdis: float, seed: int, hcell: str, threads: int, work: Path,
-             depths: tuple[float, ...] = ()) -> list[dict]:
-    """The DEM and the hybrid at the fix's zones, then the hybrid at each of `depths` (the zone
-    oracle's depth, grain diameters) against the same DEM run: one row each."""
+             variants: tuple[tuple[str, float], ...] = ()) -> list[dict]:
+    """The DEM and the hybrid at the fix's zones, then the hybrid at each of `variants` (a key of
+    VARIANTS, the zone oracle's depth or the depth below the free surface only, and its value in
+    grain diameters) against the same DEM run: one row each."""
     size = silo_size(n)
     common = dict(**size, np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
     prepare_silo(size["width"], size["height"], D, seed, work / f"prep_{n}", np_=np_, timeout=4 * 3600)  # cached
     dem, dem_cpu = timed(run_dem_silo, out=work / f"dem_{n}", **common)
     rows = []
-    for depth in (None, *depths):
-        name = f"hybrid_{n}" if depth is None else f"hybrid_{n}_depth{depth:g}"
-        hvars = {"hcell": hcell} if depth is None else {"hcell": hcell, "hdepth": f"{depth * D:.9g}"}
+    for variant in (None, *variants):
+        hvars, zones = {"hcell": hcell}, {key: None for key in VARIANTS}
+        name = f"hybrid_{n}"
+        if variant is not None:
+            key, value = variant
+            hvars[VARIANTS[key][0]] = f"{value * D:.9g}"
+            zones[key] = value
+            name += f"_{VARIANTS[key][1]}{value:g}"
         hyb, hyb_cpu = timed(run_dem_silo, out=work / name, hybrid_vars=hvars, **common)
         row = dict(scene="silo_2d", grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=ORIFICE,
-                   depth_d=depth, error=hyb.rate / dem.rate - 1, runout_error=None, cores=np_, lammps_ranks=np_,
+                   **zones, error=hyb.rate / dem.rate - 1, runout_error=None, cores=np_, lammps_ranks=np_,
                    mpm_threads=threads, rate_dem=dem.rate, rate_hybrid=hyb.rate,
                    grain_rate_error=hyb.grain_rate / dem.grain_rate - 1,
                    mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=hcell,
                    **speeds(dem, hyb, dem_cpu, hyb_cpu),
                    **cost_model(dem.loop_time, work / f"dem_{n}" / "log.lammps", work / name / "log.lammps", threads))
-        print(f"silo W = {n} d{'' if depth is None else f', depth {depth:g} d'}: {dem.grains} grains, speedup "
+        print(f"silo W = {n} d{'' if variant is None else ', ' + variant_label(row)}: {dem.grains} grains, speedup "
               f"{row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), rate {row['error']:+.1%}, "
               f"continuum {row['continuum_share']:.0%}", flush=True)
         rows.append(row)
@@ -200,13 +221,15 @@ def table(rows: list[dict]) -> list[str]:
            "DEM wall s | hybrid wall s | speedup (wall) | speedup (CPU time) | predicted | error | runout error | "
            "coupling s (MPM wait, rezones) |",
            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
-    for r in rows:
+    order = lambda r: (r["scene"], -r["cores"], r.get("pinned", False), r["width_d"],  # noqa: E731
+                       *((r.get(k) is not None, r.get(k) or 0) for k in VARIANTS))
+    for r in sorted(rows, key=order):
         error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
         if "grain_rate_error" in r:    # the grains that left, counted (rows from 2026-11-26 on)
             error += f" (grains {r['grain_rate_error']:+.1%})"
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
-        depth = f", depth {r['depth_d']:g}" if r.get("depth_d") is not None else ""
+        depth = f", {variant_label(r, unit='')}" if is_variant(r) else ""
         out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']}{depth} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
                    f"{cpu} | {r['predicted_speedup']:.2f}x | {error} | {runout} | {r['coupling_s']:.1f} "
@@ -220,7 +243,7 @@ def plot(rows: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
     fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(16, 4.2))
     for (scene, marker), cores in product((("silo_2d", "o"), ("collapse_2d", "^")), sorted({r["cores"] for r in rows})):
-        mine = sorted((r for r in rows if r["scene"] == scene and r["cores"] == cores and r.get("depth_d") is None),
+        mine = sorted((r for r in rows if r["scene"] == scene and r["cores"] == cores and not is_variant(r)),
                       key=lambda r: r["grains"])
         if not mine:
             continue
@@ -244,19 +267,28 @@ def plot(rows: list[dict], path: Path) -> None:
 
 def front(rows: list[dict], ax) -> None:
     """Error against wall time for each silo size run at several depths: the DEM at zero error,
-    the hybrid at each depth (the fix's default marked), on the same cores."""
+    the hybrid at the fix's zones (star), at other depths (circles, joined) and at other depths
+    below the free surface only (diamonds), on the same cores."""
     silo = [r for r in rows if r["scene"] == "silo_2d" and not r.get("pinned")]
-    for (n, cores) in sorted({(r["width_d"], r["cores"]) for r in silo if r.get("depth_d") is not None}):
+    for (n, cores) in sorted({(r["width_d"], r["cores"]) for r in silo if is_variant(r)}):
         mine = [r for r in silo if r["width_d"] == n and r["cores"] == cores]
-        mine.sort(key=lambda r: r["hybrid_wall_s"])
-        line, = ax.plot([r["hybrid_wall_s"] for r in mine], [100 * abs(r["error"]) for r in mine], "o-",
-                        label=f"hybrid, W = {n} d, {cores} core(s)")
+        at = lambda r: (r["hybrid_wall_s"], 100 * abs(r["error"]))  # noqa: E731
+        default = [r for r in mine if not is_variant(r)]
+        depth = sorted((r for r in mine if r.get("depth_d") is not None or not is_variant(r)),
+                       key=lambda r: r["hybrid_wall_s"])
+        line, = ax.plot(*zip(*map(at, depth)), "o-", label=f"hybrid, W = {n} d, {cores} core(s)")
+        surface = [r for r in mine if r.get("surface_depth_d") is not None]
+        if surface:
+            ax.plot(*zip(*map(at, surface)), "D", color=line.get_color())
+        if default:
+            ax.plot(*zip(*map(at, default)), "*", ms=12, color=line.get_color())
         ax.plot([mine[0]["dem_wall_s"]], [0.0], "s", color=line.get_color(), label=f"LAMMPS DEM, W = {n} d")
         for r in mine:
-            label = "default" if r.get("depth_d") is None else f"depth {r['depth_d']:g} d"
-            ax.annotate(label, (r["hybrid_wall_s"], 100 * abs(r["error"])), textcoords="offset points",
-                        xytext=(4, 4), fontsize=8)
-    ax.set(xscale="log", yscale="symlog", xlabel="wall time, s", ylabel="|discharge rate error| (%)")
+            ax.annotate(variant_label(r) if is_variant(r) else "default", at(r), textcoords="offset points",
+                        xytext=(4, 4), fontsize=7)
+    ax.set(xscale="log", yscale="symlog", xlabel="wall time, s", ylabel="|discharge rate error| (%)",
+           title="circles: depth; diamonds: depth below the free surface only", )
+    ax.title.set_fontsize(9)
     ax.legend(fontsize=8)
 
 
@@ -269,8 +301,8 @@ def load(path: Path) -> tuple[dict, list[dict]]:
 def save(path: Path, rows: list[dict], **head) -> None:
     """The JSON: `rows`, one per scene, size and cores at the fix's zones (the issue's table), and
     `depth_front`, the silo's hybrid at other zone depths against the same DEM runs."""
-    path.write_text(json.dumps(dict(**head, rows=[r for r in rows if r.get("depth_d") is None],
-                                    depth_front=[r for r in rows if r.get("depth_d") is not None]), indent=1))
+    path.write_text(json.dumps(dict(**head, rows=[r for r in rows if not is_variant(r)],
+                                    depth_front=[r for r in rows if is_variant(r)]), indent=1))
 
 
 def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
@@ -297,6 +329,9 @@ def main() -> int:
     ap.add_argument("--depths", default="",
                     help="silo: also run the hybrid with these zone depths, grain diameters (e.g. '12,24'), "
                          "against the same DEM run: the error against wall time")
+    ap.add_argument("--surface-depths", default="",
+                    help="silo: also run the hybrid with these depths below the free surface only (fix keyword "
+                         "surface_depth; the floor, walls and orifice keep the fix's depth), grain diameters")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of other (scene, size, cores) already in the JSON (each row has its date)")
     ap.add_argument("--pin", action="store_true",
@@ -320,20 +355,23 @@ def main() -> int:
         os.sched_setaffinity(0, set(range(a.np_)))
         os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
     sizes = [int(n) for n in a.sizes.split(",") if n]
-    depths = tuple(float(x) for x in a.depths.split(",") if x)
-    rows = [r for n in sizes for r in run_silo(n, a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work, depths)]
+    variants = tuple(("depth_d", float(x)) for x in a.depths.split(",") if x) + \
+        tuple(("surface_depth_d", float(x)) for x in a.surface_depths.split(",") if x)
+    rows = [r for n in sizes for r in run_silo(n, a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work, variants)]
     rows += [run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)
              for n in (int(n) for n in a.collapse_sizes.split(",") if n)]
     for r in rows:
         r["date"], r["pinned"] = stamp, a.pin
     if a.keep and path.exists():
-        key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False), r.get("depth_d"))  # noqa: E731
+        key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False),  # noqa: E731
+                         *(r.get(k) for k in VARIANTS))
         new = {key(r) for r in rows}
         saved, saved_rows = load(path)
         old = [dict(r, date=r.get("date", saved["date"])) for r in saved_rows if key(r) not in new]
         rows = old + rows
     command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --collapse-sizes "
                f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
+               f"{f' --surface-depths {a.surface_depths}' if a.surface_depths else ''}"
                f"{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     save(path, rows, date=stamp, np=a.np_, command=command)
     write(rows, command, stamp, a.out)

@@ -14,7 +14,7 @@ namespace {
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
     "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
-    "mpm_state, every, timeout, idle, adaptive, depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
+    "mpm_state, every, timeout, idle, adaptive, depth, surface_depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
     "seed, steps_per_contact, material, relax, rezone_log";
 
 [[noreturn]] void illegal(const std::string &why) { throw OptionError(why); }
@@ -55,6 +55,8 @@ bool set_oracle_option(OracleSettings &oracle, const std::string &key, const std
   bool fraction = false;    // a packing fraction in (0, 1); else in (0, inf)
   const char *what = "";
   if (key == "depth") target = &oracle.continuum_depth, what = "continuum deeper than depth + band, m";
+  else if (key == "surface_depth")
+    target = &oracle.surface_depth, what = "continuum deeper than surface_depth + band below a free surface, m";
   else if (key == "band") target = &oracle.band, what = "half width of the hybrid band, m";
   else if (key == "surface_packing") target = &oracle.surface_packing, fraction = true, what = "a packing fraction";
   else if (key == "dilute") target = &oracle.dilute_packing, fraction = true, what = "a packing fraction";
@@ -81,6 +83,9 @@ void check_oracle_options(FixOptions &o, int dimension) {
             std::to_string(dimension) + ")/2 cells), or continuum cells may border discrete ones");
   if (!(o.oracle.continuum_depth > o.oracle.band))
     illegal("keyword 'depth' (" + shortest(o.oracle.continuum_depth) + ") must exceed 'band' (" +
+            shortest(o.oracle.band) + "): the cells at the free surface must stay discrete");
+  if (o.oracle.surface_depth > 0.0 && !(o.oracle.surface_depth > o.oracle.band))
+    illegal("keyword 'surface_depth' (" + shortest(o.oracle.surface_depth) + ") must exceed 'band' (" +
             shortest(o.oracle.band) + "): the cells at the free surface must stay discrete");
 }
 

@@ -217,6 +217,7 @@ TEST_F(DemSession, RezoneZonesOfTheWrongSizeAreAProtocolErrorAndTheOracleGetsIts
     h.zone_source = coupler::kZonesOracle;
     coupler::OracleSettings oracle;
     oracle.band = 0.25;
+    oracle.surface_depth = 0.5;    // the last field of the layout
     std::vector<signed char> zones;
     std::vector<coupler::RezoneCell<3>> cells;
     const auto out = s.session->rezone_zones<3>(h, {}, oracle, [] { return std::vector<std::uint64_t>{7, 8}; }, {}, 10,
@@ -225,7 +226,9 @@ TEST_F(DemSession, RezoneZonesOfTheWrongSizeAreAProtocolErrorAndTheOracleGetsIts
     EXPECT_EQ(out.what, "protocol error: a zone map of 4 cells for a grid of 10");
   } else {
     recv_struct<coupler::StepHeader>(coupler::kTagStep);
-    EXPECT_DOUBLE_EQ(recv_struct<coupler::OracleSettings>(coupler::kTagOracle).band, 0.25);
+    const auto oracle = recv_struct<coupler::OracleSettings>(coupler::kTagOracle);
+    EXPECT_DOUBLE_EQ(oracle.band, 0.25);
+    EXPECT_DOUBLE_EQ(oracle.surface_depth, 0.5);
     EXPECT_EQ(recv_array<std::uint64_t>(coupler::kTagDiscreteCells), (std::vector<std::uint64_t>{7, 8}));
     EXPECT_TRUE(recv_array<coupler::CellGrains>(coupler::kTagVolumes).empty());
     send_array(coupler::kTagZones, std::vector<signed char>(4, coupler::kDiscrete));

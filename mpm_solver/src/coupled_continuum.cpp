@@ -158,9 +158,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
       box.add_boundary(c);
     }
     const auto packing = coupler::packing_fraction<D>(geometry, volume, has_points);
-    auto distance = coupler::signed_distance<D>(
-        geometry, coupler::solid_material(packing, os.surface_packing, box.solid), box.boundary);
-    coupler::keep_solid_outside(distance, box.solid);
+    const auto distance = coupler::zone_distance<D>(geometry, packing, box.boundary, box.solid, os);
     next = coupler::next_zones<D>(geometry, zone_source == coupler::kZonesInitial ? std::vector<std::int8_t>{} : zones_,
                                   distance, packing, shear, os);
     // At the start there are no previous zones to step from: go to the oracle's fixed point.

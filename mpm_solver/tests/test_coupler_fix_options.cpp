@@ -86,6 +86,9 @@ TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {
   EXPECT_TRUE(o.adaptive() && o.splits());
   EXPECT_DOUBLE_EQ(o.oracle.band, 0.01);
   EXPECT_DOUBLE_EQ(o.oracle.continuum_depth, 0.03);
+  EXPECT_DOUBLE_EQ(o.oracle.free_surface_depth(), 0.03);    // no surface_depth: the depth
+  EXPECT_DOUBLE_EQ(parse("cell 0.01 adaptive 100 surface_depth 0.02").oracle.free_surface_depth(), 0.02);
+  EXPECT_DOUBLE_EQ(parse("cell 0.01 adaptive 100 surface_depth 0.02").oracle.continuum_depth, 0.03);
   EXPECT_DOUBLE_EQ(o.continuum.pic, 0.0);    // the impulse rule where the band lies in the flow
   EXPECT_EQ(o.continuum.touched_faces, coupler::face_bit(0, 0) | coupler::face_bit(1, 0));
   EXPECT_DOUBLE_EQ(parse("cell 0.01 adaptive 100 every 10 pic 0.5").continuum.pic, 0.5);
@@ -93,6 +96,8 @@ TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {
   // fix_modify's oracle keywords: false for others, the same checks
   EXPECT_TRUE(coupler::set_oracle_option(o.oracle, "depth", "0.05"));
   EXPECT_DOUBLE_EQ(o.oracle.continuum_depth, 0.05);
+  EXPECT_TRUE(coupler::set_oracle_option(o.oracle, "surface_depth", "0.025"));
+  EXPECT_DOUBLE_EQ(o.oracle.free_surface_depth(), 0.025);
   EXPECT_FALSE(coupler::set_oracle_option(o.oracle, "every", "5"));
   EXPECT_THROW(coupler::set_oracle_option(o.oracle, "surface_packing", "1"), coupler::OptionError);
   o.oracle.band = 0.001;
@@ -148,6 +153,11 @@ TEST(FixOptions, BadLinesNameTheKeyword) {
             "keyword 'band' (0.005) must exceed 0.007071 (sqrt(2)/2 cells), or continuum cells may border discrete ones");
   EXPECT_EQ(error_of("cell 0.01 adaptive 10 depth 0.01 band 0.01"),
             "keyword 'depth' (0.01) must exceed 'band' (0.01): the cells at the free surface must stay discrete");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 surface_depth 0.01"),
+            "keyword 'surface_depth' (0.01) must exceed 'band' (0.01): the cells at the free surface must stay discrete");
+  EXPECT_EQ(error_of("cell 0.01 adaptive 10 surface_depth -1"),
+            "keyword 'surface_depth' (continuum deeper than surface_depth + band below a free surface, m) must be in "
+            "(0, inf), not -1");
   EXPECT_EQ(error_of("cell 0.01 adaptive 10 dilute 1.5"),
             "keyword 'dilute' (a packing fraction) must be in (0, 1), not 1.5");
   EXPECT_EQ(error_of("cell 0.01 adaptive 10 shear_rate 0"),

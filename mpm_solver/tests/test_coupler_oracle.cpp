@@ -322,7 +322,8 @@ TEST(coupler_oracle, BoxCellsSplitTouchedFromSurfaceFaces) {
 /// A box of material (points in every cell of x in [0, 3], y in [0, 1.2]) in a container
 /// [0, 3] x [0, 2], the oracle run to its fixed point, with the floor (ylo) touched or not and
 /// optionally a discrete region (an orifice column) over x in [1.4, 1.6], y < 0.4, the cells below
-/// the floor too. Depth 0.3, band 0.1: continuum where the distance exceeds 0.4.
+/// the floor too. Depth 0.3, band 0.1: continuum where the distance exceeds 0.4 (below the free
+/// top: surface_depth + 0.1 where surface_depth > 0).
 struct TouchedFloor {
   coupler::GridGeometry<2> grid;
   coupler::OracleResult result;
@@ -332,7 +333,7 @@ struct TouchedFloor {
   }
 };
 
-TouchedFloor touched_floor(bool touched, bool orifice, double top = 1.2) {
+TouchedFloor touched_floor(bool touched, bool orifice, double top = 1.2, double surface_depth = 0) {
   TouchedFloor t;
   const Vec<2> lower(0, 0), upper(3.0, 2.0);
   t.grid = coupler::padded_grid<2>(lower, upper, 0.1);
@@ -347,7 +348,8 @@ TouchedFloor touched_floor(bool touched, bool orifice, double top = 1.2) {
   coupler::BoxCells box = coupler::box_cells<2>(t.grid, lower, upper, touched ? coupler::face_bit(1, 0) : 0u);
   for (std::size_t c = 0; c < n; ++c)
     if (t.region[c]) box.add_boundary(c);
-  const auto s = band_settings();
+  auto s = band_settings();
+  s.surface_depth = surface_depth;
   std::vector<std::int8_t> zones;
   for (int k = 0; k < 4; ++k) {
     t.result = coupler::run_oracle<2>(t.grid, {}, points, box.boundary, zones, {}, s, box.solid);
@@ -414,6 +416,35 @@ TEST(coupler_oracle, DiscreteRegionOverTouchedFloorStillKeepsContinuumAway) {
   EXPECT_EQ(t.zone_at(1.5, -0.05), coupler::kDiscrete);  // the region below the floor: a boundary
   EXPECT_LT(t.result.distance[coupler::cell_index(t.grid, coupler::cell_of(t.grid, Vec<2>(1.5, -0.05)))], 0);
   EXPECT_EQ(t.zone_at(0.85, 0.05), coupler::kContinuum);
+}
+
+TEST(coupler_oracle, SurfaceDepthMovesTheContinuumUnderAFreeSurfaceOnly) {
+  // surface_depth equal to the depth is the default, to the last bit
+  const TouchedFloor same = touched_floor(true, true, 1.2, 0.3), plain = touched_floor(true, true);
+  EXPECT_EQ(same.result.distance, plain.result.distance);
+  EXPECT_EQ(same.result.zones, plain.result.zones);
+  // 0.16 below the free top at 1.2 (instead of 0.3): continuum from 0.26 below it, not 0.4,
+  // discrete above 0.06
+  const TouchedFloor t = touched_floor(true, true, 1.2, 0.16);
+  EXPECT_EQ(plain.zone_at(1.0, 0.85), coupler::kHybrid);  // 0.35 below the top
+  EXPECT_EQ(t.zone_at(1.0, 0.85), coupler::kContinuum);
+  EXPECT_EQ(t.zone_at(1.0, 0.95), coupler::kHybrid);      // 0.25
+  EXPECT_EQ(t.zone_at(1.0, 1.15), coupler::kDiscrete);    // 0.05
+  // the untouched side walls and the orifice's region keep the continuum depth + band away
+  EXPECT_EQ(t.zone_at(0.35, 0.55), coupler::kHybrid);
+  EXPECT_EQ(t.zone_at(0.45, 0.55), coupler::kContinuum);
+  EXPECT_EQ(t.zone_at(1.25, 0.05), coupler::kDiscrete);
+  EXPECT_EQ(t.zone_at(1.15, 0.05), coupler::kHybrid);
+  for (std::size_t c = 0; c < t.result.zones.size(); ++c) {
+    if (t.result.zones[c] != coupler::kContinuum) continue;
+    const Vec<2> x = coupler::cell_center(t.grid, coupler::cell_coords(t.grid, c));
+    EXPECT_GT(std::min(x[0], 3.0 - x[0]), 0.4) << x.transpose();
+    EXPECT_GT(1.2 - x[1] - 0.05, 0.26) << x.transpose();  // the cell's distance to the top
+  }
+  // a deeper surface layer than the walls' margin works the other way
+  const TouchedFloor deep = touched_floor(true, false, 1.2, 0.5);
+  EXPECT_EQ(deep.zone_at(1.5, 0.65), coupler::kHybrid);     // 0.55 below the top, under 0.6
+  EXPECT_EQ(deep.zone_at(1.5, 0.55), coupler::kContinuum);  // 0.65
 }
 
 TEST(coupler_oracle, ThinLayerOnTouchedFloorStaysDiscrete) {

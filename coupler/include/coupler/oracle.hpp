@@ -7,7 +7,8 @@
 //   2. material = phi >= surface_packing; signed distance of each cell centre to the free
 //      surface (and to walls / intruders, passed as boundary cells), by an exact Euclidean
 //      distance transform; faces of the container the continuum may touch are no surface
-//      (the cells beyond them count as material and stay discrete: box_cells);
+//      (the cells beyond them count as material and stay discrete: box_cells); below a free
+//      surface the depth may differ from the margin at walls and discrete regions (zone_distance);
 //   3. zones from the distance with the band [L - h, L + h] and the previous zones, so that a
 //      cell always passes through hybrid and does not flicker; hybrid only near a continuum.
 //
@@ -35,6 +36,10 @@ struct OracleSettings {
   // Optional extra criteria, off when <= 0:
   double dilute_packing = 0;  ///< cells with phi below this are discrete
   double max_shear_rate = 0;  ///< cells whose shear rate exceeds this are discrete
+  /// L_s: the depth below a free surface (not a wall or discrete region); <= 0: L (zone_distance)
+  double surface_depth = 0;
+  /// The depth below free surfaces in use (L_s, or L where none is set).
+  double free_surface_depth() const { return surface_depth > 0 ? surface_depth : continuum_depth; }
 };
 static_assert(std::is_trivially_copyable_v<OracleSettings>, "OracleSettings is sent over MPI as bytes");
 
@@ -240,6 +245,17 @@ inline void keep_solid_outside(std::vector<double>& distance, const std::vector<
     if (solid[c]) distance[c] = -std::numeric_limits<double>::infinity();
 }
 
+namespace oracle_detail {
+/// Distance in length units from each cell centre to the nearest centre of a `source` cell,
+/// less half a cell (the surface lies half way between centres); +inf if there is none.
+template <int D>
+std::vector<double> distance_to_cells(const GridGeometry<D>& grid, const std::vector<std::uint8_t>& source) {
+  std::vector<double> d = squared_distance_transform<D>(grid.dims.array() - 1, source);
+  for (double& v : d) v = (std::sqrt(v) - 0.5) * grid.dx;
+  return d;
+}
+}  // namespace oracle_detail
+
 /// Signed distance, in length units, from each cell centre to the surface of the material.
 /// Sign convention: positive inside (cell is `material` and not a boundary cell), negative
 /// outside; never zero. Boundary cells (walls, intruders, box padding; may be empty) count as
@@ -260,12 +276,42 @@ std::vector<double> signed_distance(const GridGeometry<D>& grid, const std::vect
     inside[c] = material[c] && (boundary_cells.empty() || !boundary_cells[c]);
     outside[c] = !inside[c];
   }
-  const Eigen::Matrix<int, D, 1> cells = grid.dims.array() - 1;
-  const std::vector<double> to_outside = squared_distance_transform<D>(cells, outside);
-  const std::vector<double> to_inside = squared_distance_transform<D>(cells, inside);
+  const std::vector<double> to_outside = oracle_detail::distance_to_cells<D>(grid, outside);
+  const std::vector<double> to_inside = oracle_detail::distance_to_cells<D>(grid, inside);
   std::vector<double> d(n);
-  for (std::size_t c = 0; c < n; ++c)
-    d[c] = inside[c] ? (std::sqrt(to_outside[c]) - 0.5) * grid.dx : -(std::sqrt(to_inside[c]) - 0.5) * grid.dx;
+  for (std::size_t c = 0; c < n; ++c) d[c] = inside[c] ? to_outside[c] : -to_inside[c];
+  return d;
+}
+
+/// The distance the zones are taken from (update_zones' thresholds L -+ h): signed_distance of
+/// the material (packing at least surface_packing, and the solid cells beyond faces the
+/// continuum may touch) with boundary cells as outside, solid cells at -inf (keep_solid_outside).
+/// With a surface depth L_s other than L (OracleSettings::surface_depth), a free surface
+/// (material next to a cell that is neither material nor boundary) wants the continuum L_s + h
+/// below it while walls and discrete regions keep it L + h away: inside cells take
+///   min(d_free + L - L_s, d_boundary),
+/// which is signed_distance where L_s = L (min of the distances to the two kinds of outside
+/// cell). A silo's surface descends slowly, while the orifice's converging flow needs its margin.
+template <int D>
+std::vector<double> zone_distance(const GridGeometry<D>& grid, const std::vector<double>& packing,
+                                  const std::vector<std::uint8_t>& boundary_cells,
+                                  const std::vector<std::uint8_t>& solid_cells, const OracleSettings& s) {
+  const auto material = solid_material(packing, s.surface_packing, solid_cells);
+  std::vector<double> d = signed_distance<D>(grid, material, boundary_cells);
+  const double shift = s.continuum_depth - s.free_surface_depth();
+  if (shift != 0.0) {
+    const std::size_t n = d.size();
+    std::vector<std::uint8_t> free(n), boundary(n, 0);
+    for (std::size_t c = 0; c < n; ++c) {
+      boundary[c] = !boundary_cells.empty() && boundary_cells[c];
+      free[c] = !material[c] && !boundary[c];
+    }
+    const std::vector<double> to_free = oracle_detail::distance_to_cells<D>(grid, free);
+    const std::vector<double> to_boundary = oracle_detail::distance_to_cells<D>(grid, boundary);
+    for (std::size_t c = 0; c < n; ++c)
+      if (d[c] > 0) d[c] = std::min(to_free[c] + shift, to_boundary[c]);
+  }
+  keep_solid_outside(d, solid_cells);
   return d;
 }
 
@@ -347,7 +393,7 @@ std::vector<std::int8_t> next_zones(const GridGeometry<D>& grid, const std::vect
 
 struct OracleResult {
   std::vector<double> packing;   ///< phi per cell
-  std::vector<double> distance;  ///< signed distance per cell (positive inside)
+  std::vector<double> distance;  ///< zone_distance per cell (signed distance, positive inside)
   std::vector<std::int8_t> zones;
 };
 
@@ -362,9 +408,7 @@ OracleResult run_oracle(const GridGeometry<D>& grid, const std::vector<double>& 
                         const OracleSettings& settings, const std::vector<std::uint8_t>& solid_cells = {}) {
   OracleResult r;
   r.packing = packing_fraction<D>(grid, grain_volume_per_cell, has_points);
-  const auto material = solid_material(r.packing, settings.surface_packing, solid_cells);
-  r.distance = signed_distance<D>(grid, material, boundary_cells);
-  keep_solid_outside(r.distance, solid_cells);
+  r.distance = zone_distance<D>(grid, r.packing, boundary_cells, solid_cells, settings);
   r.zones = next_zones<D>(grid, previous, r.distance, r.packing, shear_rate, settings);
   return r;
 }

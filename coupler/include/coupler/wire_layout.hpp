@@ -13,7 +13,7 @@
 
 namespace coupler::wire_layout {
 
-static_assert(kProtocolVersion == 8, "the layouts below are those of protocol 8: update them with the version");
+static_assert(kProtocolVersion == 9, "the layouts below are those of protocol 9: update them with the version");
 
 #define COUPLER_WIRE_SIZE(T, size)                                                                     \
   static_assert(std::is_standard_layout_v<T> && std::is_trivially_copyable_v<T>,                      \
@@ -148,12 +148,13 @@ COUPLER_WIRE_FIELD(Finish, exchanges, 8, 8);
 COUPLER_WIRE_SIZE(AbortNote, 256);
 COUPLER_WIRE_FIELD(AbortNote, reason, 0, 256);
 
-COUPLER_WIRE_SIZE(OracleSettings, 40);
+COUPLER_WIRE_SIZE(OracleSettings, 48);
 COUPLER_WIRE_FIELD(OracleSettings, surface_packing, 0, 8);
 COUPLER_WIRE_FIELD(OracleSettings, continuum_depth, 8, 8);
 COUPLER_WIRE_FIELD(OracleSettings, band, 16, 8);
 COUPLER_WIRE_FIELD(OracleSettings, dilute_packing, 24, 8);
 COUPLER_WIRE_FIELD(OracleSettings, max_shear_rate, 32, 8);
+COUPLER_WIRE_FIELD(OracleSettings, surface_depth, 40, 8);
 
 COUPLER_WIRE_SIZE(CellMoments<2>, 96);
 COUPLER_WIRE_FIELD(CellMoments<2>, cell, 0, 8);
