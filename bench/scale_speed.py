@@ -225,6 +225,8 @@ def table(rows: list[dict]) -> list[str]:
                        *((r.get(k) is not None, r.get(k) or 0) for k in VARIANTS))
     for r in sorted(rows, key=order):
         error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
+        if "steps_ratio" in r:    # a collapse: the hybrid's steps to rest over the DEM's (its cap if not at rest)
+            error += f", steps x{r['steps_ratio']:.2f}"
         if "grain_rate_error" in r:    # the grains that left, counted (rows from 2026-11-26 on)
             error += f" (grains {r['grain_rate_error']:+.1%})"
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
