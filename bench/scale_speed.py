@@ -289,7 +289,7 @@ def front(rows: list[dict], ax) -> None:
             ax.annotate(variant_label(r) if is_variant(r) else "default", at(r), textcoords="offset points",
                         xytext=(4, 4), fontsize=7)
     ax.set(xscale="log", yscale="symlog", xlabel="wall time, s", ylabel="|discharge rate error| (%)",
-           title="circles: depth; diamonds: depth below the free surface only", )
+           title="circles: depth; diamonds: depth below the free surface only")
     ax.title.set_fontsize(9)
     ax.legend(fontsize=8)
 

@@ -81,12 +81,14 @@ void check_oracle_options(FixOptions &o, int dimension) {
   if (!(o.oracle.band > closest))
     illegal("keyword 'band' (" + shortest(o.oracle.band) + ") must exceed " + general(closest, 4) + " (sqrt(" +
             std::to_string(dimension) + ")/2 cells), or continuum cells may border discrete ones");
-  if (!(o.oracle.continuum_depth > o.oracle.band))
-    illegal("keyword 'depth' (" + shortest(o.oracle.continuum_depth) + ") must exceed 'band' (" +
-            shortest(o.oracle.band) + "): the cells at the free surface must stay discrete");
-  if (o.oracle.surface_depth > 0.0 && !(o.oracle.surface_depth > o.oracle.band))
-    illegal("keyword 'surface_depth' (" + shortest(o.oracle.surface_depth) + ") must exceed 'band' (" +
-            shortest(o.oracle.band) + "): the cells at the free surface must stay discrete");
+  // each depth (surface_depth where set) keeps the cells at the free surface discrete
+  const auto exceed_band = [&o](const char *key, double depth) {
+    if (!(depth > o.oracle.band))
+      illegal(std::string("keyword '") + key + "' (" + shortest(depth) + ") must exceed 'band' (" +
+              shortest(o.oracle.band) + "): the cells at the free surface must stay discrete");
+  };
+  exceed_band("depth", o.oracle.continuum_depth);
+  if (o.oracle.surface_depth > 0.0) exceed_band("surface_depth", o.oracle.surface_depth);
 }
 
 namespace {
