@@ -82,6 +82,8 @@ class CoupledContinuum {
     std::vector<std::size_t> members;
   };
   std::vector<MovingCell> moving_;
+  /// The grains' carried mass per cell (plan_rezone's sums; complete_rezone sets the moving cells').
+  std::vector<double> cell_grain_mass_;
   std::int64_t zone_cells_[3] = {0, 0, 0};
   std::int64_t moved_cells_ = 0, points_made_ = 0, points_removed_ = 0;
   std::int64_t rest_moved_ = 0;  ///< last rezone: cells whose rest of material went to nearby points

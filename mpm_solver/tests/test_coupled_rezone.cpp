@@ -1,0 +1,132 @@
+// The continuum's side of a rezone (CoupledContinuum::plan_rezone and complete_rezone,
+// docs/design.md section 5.6): where a cell's material goes when its new zone cannot hold it.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <vector>
+
+#include "coupler/conversion.hpp"
+#include "coupler/protocol.hpp"
+#include "mpm/coupled_continuum.hpp"
+
+namespace {
+
+constexpr double kCell = 0.01;          // m
+constexpr double kGrainDensity = 2500;  // kg/m^2 (2D)
+constexpr int kCells = 12;              // cells per axis of the box
+const double kSolidContent = kGrainDensity * kCell * kCell;  // a cell's volume of solid grain material
+
+coupler::Hello square_box() {
+  coupler::Hello hello;
+  coupler::set_text(hello.units, "si");
+  hello.dimension = 2;
+  hello.cell = kCell;
+  hello.dt = 1e-5;
+  for (int a = 0; a < 2; ++a) {
+    hello.box_hi[a] = kCells * kCell;
+    hello.continuum.container_hi[a] = kCells * kCell;
+  }
+  hello.continuum.grain_density = kGrainDensity;
+  hello.continuum.grain_diameter = kCell / 3;
+  return hello;
+}
+
+struct Rezone {
+  std::vector<coupler::CellGrains> volumes;
+  std::map<std::uint64_t, coupler::GrainSums<2>> sums;
+};
+
+/// Four resting grains of `mass` in all (carried at their solid mass) at the quarter points of a cell.
+void add_grains(Rezone& r, const coupler::GridGeometry<2>& grid, std::uint64_t cell, double mass) {
+  r.volumes.push_back({cell, mass / kGrainDensity, mass});
+  const Eigen::Vector2d centre = coupler::cell_center<2>(grid, coupler::cell_coords<2>(grid, cell));
+  coupler::GrainSums<2>& s = r.sums[cell];
+  s.carried.moments.cell = s.solid.moments.cell = cell;
+  for (double dx : {-0.25, 0.25})
+    for (double dy : {-0.25, 0.25}) {
+      const Eigen::Vector2d x = centre + kCell * Eigen::Vector2d(dx, dy);
+      const double e = 0.5 * std::pow(kCell / 6, 2);  // a disk's own inertia per mass, r^2/2
+      for (auto* body : {&s.carried, &s.solid})
+        body->add_body(x, Eigen::Vector2d::Zero(), mass / 4, coupler::Spin<2>::Zero(), e, Eigen::Matrix2d::Zero(),
+                       centre);
+    }
+}
+
+/// Runs one rezone with the given zones and grains; returns the continuum's totals after it.
+coupler::StepAck rezone(mpm::CoupledContinuum<2>& continuum, const std::vector<std::int8_t>& zones, const Rezone& r) {
+  continuum.plan_rezone(0.0, coupler::kZonesGiven, zones, coupler::OracleSettings{}, {}, {r.volumes});
+  std::vector<coupler::GrainSums<2>> sums;
+  for (const auto& [cell, s] : r.sums) sums.push_back(s);
+  continuum.complete_rezone({sums});
+  return continuum.totals(0);
+}
+
+/// The points' mass in each cell.
+std::map<std::uint64_t, double> point_mass_per_cell(const mpm::CoupledContinuum<2>& continuum) {
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  const auto& pts = continuum.solver().points();
+  std::map<std::uint64_t, double> mass;
+  for (std::size_t p = 0; p < pts.size(); ++p)
+    mass[coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, pts.x[p]))] += pts.mass[p];
+  return mass;
+}
+
+// A cell turns discrete again and again with only points in it (grains that flowed in, became
+// points, and find no room to be grains again): each time its whole material is a rest for the
+// points of the cells around. Those must not pile it up: a cell holding its volume of solid
+// material takes no more, so every cell's points end below 1.5 times it (one correction scales
+// its carriers by at most 3/2), the rests spread outwards, and once every cell within reach is
+// full the cell keeps its rest. Without that the 8 cells next to it would take all of it (here
+// 12 cells' worth: 2.3 times a cell's solid content each). Mass stays exact throughout.
+TEST(CoupledRezone, RestsDoNotPileUpInThePointsThatTakeThem) {
+  mpm::CoupledContinuum<2> continuum(square_box());
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  const std::size_t n = coupler::num_cells(grid);
+  auto cell_at = [&](int i, int j) {  // cell i, j of the box (the grid may reach beyond it)
+    return coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)));
+  };
+  const double packed = 0.8 * kSolidContent;  // a cell of grains at packing 0.8
+
+  // a 9 x 9 block of continuum made from grains, around the cell X = (5, 5)
+  std::vector<std::int8_t> zones(n, coupler::kDiscrete);
+  Rezone start;
+  for (int i = 1; i <= 9; ++i)
+    for (int j = 1; j <= 9; ++j) {
+      zones[cell_at(i, j)] = coupler::kContinuum;
+      add_grains(start, grid, cell_at(i, j), packed);
+    }
+  const double made = rezone(continuum, zones, start).mass;
+  ASSERT_NEAR(made, 81 * packed, 1e-12 * made);
+
+  const std::uint64_t x = cell_at(5, 5);
+  double mass = made;
+  std::int64_t moved = 0, kept = 0;
+  for (int cycle = 0; cycle < 15; ++cycle) {
+    zones[x] = coupler::kDiscrete;  // its points are a rest: no grains there, no points allowed
+    const coupler::StepAck out = rezone(continuum, zones, Rezone{});
+    EXPECT_NEAR(out.mass, mass, 1e-12 * mass) << "cycle " << cycle;
+    ASSERT_EQ(out.rests_moved + out.rests_kept, 1) << "cycle " << cycle;
+    moved += out.rests_moved, kept += out.rests_kept;
+    if (out.rests_moved == 1) EXPECT_EQ(point_mass_per_cell(continuum).count(x), 0u) << "cycle " << cycle;
+
+    zones[x] = coupler::kContinuum;  // grains flowed in: they become points
+    Rezone in;
+    add_grains(in, grid, x, packed);
+    mass = rezone(continuum, zones, in).mass;
+  }
+  EXPECT_GE(moved, 8) << "the rests went to the points around";
+  EXPECT_GE(kept, 1) << "with every cell within reach full, the cell keeps its rest";
+  double most = 0, total = 0;
+  for (const auto& [cell, m] : point_mass_per_cell(continuum)) {
+    total += m;
+    if (cell != x) most = std::max(most, m);
+  }
+  EXPECT_NEAR(total, mass, 1e-12 * mass);
+  EXPECT_NEAR(mass, (81 + 15) * packed, 1e-12 * mass);
+  EXPECT_LT(most, 1.5 * kSolidContent);
+  EXPECT_GT(most, 0.95 * kSolidContent) << "the cells around filled up to their solid content";
+}
+
+}  // namespace
