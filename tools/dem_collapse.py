@@ -114,6 +114,47 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
                      published=published_runout_range(aspect), log=logs.lines(log, "DEM "), **res)
 
 
+BED_RE = r"^DEM bed end: t = (\S+) s, grains (\d+), KE/grain = (\S+) J \(rest threshold (\S+) J\)"
+
+
+@dataclass(kw_only=True)
+class BedResult:
+    """A settled column kept behind its gate (deck variable gate 1) for a while: is it at rest?"""
+    grains: int                    # grains at the end (a hybrid's: those not made points)
+    ke_per_grain: float            # J, mean over the second half of the run (the deck's rest measure)
+    ke_rest: float                 # J, the deck's rest threshold (1e-5 m g d)
+    top_vy: float                  # m/s, mean vertical velocity at the end of the grains in the top 4 d
+    wall_time: float               # s
+
+
+def run_bed(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
+            out: str | Path | None = None, seed: int = 12345, tbed: float = 0.2, lmp: str = "lmp",
+            timeout: float = 3600, hybrid_vars: dict | None = None) -> BedResult:
+    """The settled column (cached, made by run() if missing) kept behind its right wall for `tbed`
+    seconds, as pure DEM or (hybrid_vars, e.g. {"hybrid": 2}) coupled: a bed at rest must stay at
+    rest. Kinetic energy over the second half of the run, and the creep of the bed's top."""
+    out = workdir(out, f"dem_bed_a{aspect:g}")
+    cache = settled(aspect, width, d, seed, {})
+    if not cache.cached():
+        run(aspect=aspect, width=width, d=d, np_=np_, out=out / "prepare", seed=seed, lmp=lmp, timeout=timeout)
+    variables = dict(aspect=aspect, width=width, d=d, out=str(out), settled=str(cache.path), prep=0, seed=seed,
+                     gate=1, tbed=tbed)
+    code = "lammps" if hybrid_vars is None else "hybrid"
+    done = FORMS.run(code, variables, out / "log.lammps", hybrid_vars, np_=np_, exe=lmp, timeout=timeout)
+    log = done.check("in the bed at rest", out / "final.dump")
+    m = re.search(BED_RE, log, re.M)
+    if not m:
+        raise RuntimeError(f"no 'DEM bed end' line in {out / 'log.lammps'}")
+    rows = logs.thermo_rows(log, require="v_kepg")
+    late = [r["v_kepg"] for r in rows if r["Time"] >= rows[-1]["Time"] - tbed / 2]
+    grains = read_dump(out / "final.dump")
+    moving = grains["type"] == 1
+    y, vy = grains["y"][moving], grains["vy"][moving]
+    top = y > y.max() - 4 * d
+    return BedResult(grains=int(m.group(2)), ke_per_grain=sum(late) / len(late), ke_rest=float(m.group(4)),
+                     top_vy=float(vy[top].mean()), wall_time=done.wall)
+
+
 def run_from_settled(**kwargs) -> DemResult:
     """run(), with the collapse always from the cached settled column, as the hybrid twins start:
     the first run after a preparation collapses from the state in memory, which a restart file
