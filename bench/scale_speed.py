@@ -27,6 +27,12 @@ predicted speedup = T_DEM / (c_g * grain-steps + c_p * point-substeps + c_x * co
 exchanges), all counts from the hybrid's own thermo rows. Where the measured speedup falls more
 than 20 % short of it, the rest is overhead the model does not hold (rezones, oracle, waiting).
 
+The 3D silo (tools/dem3d_silo.py and its twin hybrid_3d.lmp) is scaled the same way: square section
+W = n d, H = 3 W, circular orifice D = 6 d (about 3.1 n^3 spheres: n = 12, 18, 26 give about 5k, 18k and
+55k); its hybrid at the fix's zones (grid from the grains: 4 d cells, 2^3 points of about 9 spheres), the
+four side walls touched, exchange every 10 steps; the cost model with the 3D MPM's cost per point;
+--liggghts discharges each packing with pure LIGGGHTS too, the DEM's own noise floor.
+
 Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collapse/dem_2d.lmp with
 `hybrid 2`, `hcell 0`): the DEM and the adaptive hybrid collapse from the same cached column to
 rest; error = the final surface's RMS over H0, and the runout's relative error.
@@ -36,7 +42,8 @@ DEM run: the error against wall time as the continuum comes closer to the free s
 and the orifice's region (the third panel of the plot); --surface-depths moves it closer to the free
 surface only (fix keyword surface_depth), the floor and the orifice's region keeping the fix's depth.
 
-Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--collapse-sizes 50,100,200]
+Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--liggghts]
+                            [--collapse-sizes 50,100,200]
                             [--depths 12,24] [--surface-depths 12] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
 Writes bench/results/scale_speed.json (a list `rows`, one per scene, size and cores at the fix's zones,
@@ -60,6 +67,7 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 from column_collapse import combine_surfaces, points_surface, surface_error  # noqa: E402
 from dem_collapse import run as collapse  # noqa: E402
+import dem3d_silo  # noqa: E402
 from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
 from hgtools.logs import thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
@@ -68,19 +76,21 @@ from mpm_results import load_run  # noqa: E402
 RESULTS = REPO / "bench" / "results"
 D = 0.002                     # grain diameter, m
 ORIFICE = 10                  # orifice width, d
+ORIFICE_3D = 6                # orifice diameter of the 3D silo, d (the reduced 3D silo's, tests/test_dem3d_silo.py)
 DEPTH = 3                     # fill height over width
 ASPECT = 2                    # the collapse's H0 / L0
+EVERY = 10                    # the hybrids' exchange interval (hybrid_2d.lmp's default; hybrid_3d.lmp's is 20)
 
 
-def silo_size(n: int) -> dict:
+def silo_size(n: int, orifice: int = ORIFICE) -> dict:
     """The silo of width n d, in metres."""
-    return dict(width=n * D, height=DEPTH * n * D, orifice=ORIFICE * D, d=D)
+    return dict(width=n * D, height=DEPTH * n * D, orifice=orifice * D, d=D)
 
 
-def mpm_point_cost(threads: int) -> float:
-    """s per point-substep of the 2D MPM at `threads` threads (bench/results/mpm_throughput.json)."""
+def mpm_point_cost(threads: int, dim: int = 2) -> float:
+    """s per point-substep of the MPM at `threads` threads (bench/results/mpm_throughput.json)."""
     rows = json.loads((RESULTS / "mpm_throughput.json").read_text())
-    best = [r for r in rows if r["dimension"] == 2 and r["threads"] == threads and "grid_nodes" in r]
+    best = [r for r in rows if r["dimension"] == dim and r["threads"] == threads and "grid_nodes" in r]
     return 1.0 / max(r["point_steps_per_second"] for r in best)
 
 
@@ -126,12 +136,12 @@ def timed(run, **kwargs):
     return run(**kwargs), children_cpu() - before
 
 
-def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int) -> dict:
+def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim: int = 2) -> dict:
     """The cost model's terms and prediction (module docstring), and the hybrid's ledger."""
     dem_rows = thermo_rows(dem_log, require="v_ng")
     c_g = dem_loop / steps_weighted(dem_rows, lambda r: r["v_ng"])
-    led = hybrid_ledger(hyb_log, every=10)
-    c_p, c_x = mpm_point_cost(threads), exchange_cost()
+    led = hybrid_ledger(hyb_log, every=EVERY)
+    c_p, c_x = mpm_point_cost(threads, dim), exchange_cost()
     model = dict(grains=c_g * led["grain_steps"], points=c_p * led["point_substeps"],
                  exchange=c_x * led["coupled_exchanges"])
     return dict(predicted_speedup=dem_loop / sum(model.values()), continuum_share=led["share_mean"],
@@ -146,51 +156,103 @@ def speeds(dem, hyb, dem_cpu: float, hyb_cpu: float) -> dict:
                 hybrid_wall_s=hyb.wall_time, dem_loop_s=dem.loop_time, hybrid_loop_s=hyb.loop_time)
 
 
-# the zone variants a silo row may run: key of the row -> deck variable, run name, label
-VARIANTS = {"depth_d": ("hdepth", "depth", "depth"), "surface_depth_d": ("hsurface", "surface", "surface depth")}
+# the zone variants a silo row may run: key of the row -> deck variable, run name, label, and whether
+# the value is a length in grain diameters (the deck wants metres) or a choice (htouch: 2 = the
+# side walls and the floor, the region over the orifice discrete)
+VARIANTS = {"depth_d": ("hdepth", "depth", "depth", True),
+            "surface_depth_d": ("hsurface", "surface", "surface depth", True),
+            "touch": ("htouch", "touch", "touch", False)}
 
 
 def is_variant(r: dict) -> bool:
-    """A row of the hybrid at other zone depths than the fix's (the JSON's `depth_front`)."""
+    """A row of the hybrid at other zones than the fix's (the JSON's `depth_front`)."""
     return any(r.get(key) is not None for key in VARIANTS)
 
 
 def variant_label(r: dict, unit: str = " d") -> str:
-    return ", ".join(f"{VARIANTS[key][2]} {r[key]:g}{unit}"
+    return ", ".join(f"{VARIANTS[key][2]} {r[key]:g}{unit if VARIANTS[key][3] else ''}"
                      for key in VARIANTS if r.get(key) is not None)
 
 
-def run_silo(n: int, np_: int, tdis: float, seed: int, hcell: str, threads: int, work: Path,
-             variants: tuple[tuple[str, float], ...] = ()) -> list[dict]:
-    """The DEM and the hybrid at the fix's zones, then the hybrid at each of `variants` (a key of
-    VARIANTS, the zone oracle's depth or the depth below the free surface only, and its value in
-    grain diameters) against the same DEM run: one row each."""
-    size = silo_size(n)
-    common = dict(**size, np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
-    prepare_silo(size["width"], size["height"], D, seed, work / f"prep_{n}", np_=np_, timeout=4 * 3600)  # cached
-    dem, dem_cpu = timed(run_dem_silo, out=work / f"dem_{n}", **common)
+class Silo2d:
+    """The deep 2D silo (tools/dem_silo.py; hybrid_2d.lmp's zones are the fix's with hcell 0)."""
+    scene, dim, orifice_d = "silo_2d", 2, ORIFICE
+
+    def __init__(self, np_: int, seed: int, tdis: float, hcell: str):
+        self.common = dict(np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
+        self.hybrid_vars = {"hcell": hcell}
+
+    def prepare(self, n: int, work: Path) -> None:    # cached
+        size = silo_size(n, self.orifice_d)
+        prepare_silo(size["width"], size["height"], D, self.common["seed"], work / f"prep_{n}",
+                     np_=self.common["np_"], timeout=4 * 3600)
+
+    def run(self, n: int, out: Path, hybrid_vars: dict | None = None):
+        return run_dem_silo(out=out, hybrid_vars=hybrid_vars, **silo_size(n, self.orifice_d), **self.common)
+
+
+class Silo3d:
+    """The deep 3D silo of square section and circular orifice (tools/dem3d_silo.py, H = 3 W, D = 6 d).
+    Its hybrid twin (hybrid_3d.lmp) runs at the fix's zones: the grid from the grains (4 d cells),
+    depth and band the fix's, the four side walls touched, exchange every EVERY steps."""
+    scene, dim, orifice_d = "silo_3d", 3, ORIFICE_3D
+
+    def __init__(self, np_: int, seed: int, tdis: float, hcell: str):
+        self.common = dict(np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
+        self.hybrid_vars = dict(hcell=hcell, hevery=EVERY, hdepth=0, hband=0, htouch=1)
+
+    def prepare(self, n: int, work: Path) -> None:    # cached
+        size = silo_size(n, self.orifice_d)
+        dem3d_silo.prepare(size["width"], size["height"], size["orifice"], D, self.common["seed"], {},
+                           self.common["np_"], timeout=4 * 3600)
+
+    def run(self, n: int, out: Path, hybrid_vars: dict | None = None, code: str | None = None):
+        code = code or ("hybrid" if hybrid_vars is not None else "lammps")
+        return dem3d_silo.run(code, out=out, hybrid_vars=hybrid_vars, **silo_size(n, self.orifice_d), **self.common)
+
+
+def run_silo(silo, n: int, threads: int, work: Path, variants: tuple[tuple[tuple[str, float], ...], ...] = (),
+             liggghts: bool = False) -> list[dict]:
+    """The DEM and the hybrid at the fix's zones, then the hybrid at each of `variants` (pairs of a
+    key of VARIANTS, the zone oracle's depth, the depth below the free surface only or the faces
+    touched, and its value, lengths in grain diameters) against the same DEM run: one row each. `liggghts` (3D): pure LIGGGHTS from the
+    same packing too, the DEM's noise floor (its rate against LAMMPS's)."""
+    tag = "" if silo.dim == 2 else "3d_"
+    silo.prepare(n, work)
+    dem, dem_cpu = timed(silo.run, n=n, out=work / f"dem_{tag}{n}")
+    noise = None
+    if liggghts:
+        lig = silo.run(n, work / f"liggghts_{tag}{n}", code="liggghts")
+        noise = lig.rate / dem.rate - 1
     rows = []
     for variant in (None, *variants):
-        hvars, zones = {"hcell": hcell}, {key: None for key in VARIANTS}
-        name = f"hybrid_{n}"
-        if variant is not None:
-            key, value = variant
-            hvars[VARIANTS[key][0]] = f"{value * D:.9g}"
+        hvars, zones = dict(silo.hybrid_vars), {key: None for key in VARIANTS}
+        name = f"hybrid_{tag}{n}"
+        for key, value in variant or ():
+            hvars[VARIANTS[key][0]] = f"{value * D:.9g}" if VARIANTS[key][3] else f"{value:g}"
             zones[key] = value
             name += f"_{VARIANTS[key][1]}{value:g}"
-        hyb, hyb_cpu = timed(run_dem_silo, out=work / name, hybrid_vars=hvars, **common)
-        row = dict(scene="silo_2d", grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=ORIFICE,
-                   **zones, error=hyb.rate / dem.rate - 1, runout_error=None, cores=np_, lammps_ranks=np_,
-                   mpm_threads=threads, rate_dem=dem.rate, rate_hybrid=hyb.rate,
+        hyb, hyb_cpu = timed(silo.run, n=n, out=work / name, hybrid_vars=hvars)
+        row = dict(scene=silo.scene, grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=silo.orifice_d,
+                   **zones, error=hyb.rate / dem.rate - 1, runout_error=None, cores=silo.common["np_"],
+                   lammps_ranks=silo.common["np_"], mpm_threads=threads, rate_dem=dem.rate, rate_hybrid=hyb.rate,
                    grain_rate_error=hyb.grain_rate / dem.grain_rate - 1,
-                   mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=hcell,
+                   mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=silo.hybrid_vars["hcell"],
+                   **({} if noise is None else dict(noise_floor=noise, rate_liggghts=lig.rate)),
                    **speeds(dem, hyb, dem_cpu, hyb_cpu),
-                   **cost_model(dem.loop_time, work / f"dem_{n}" / "log.lammps", work / name / "log.lammps", threads))
-        print(f"silo W = {n} d{'' if variant is None else ', ' + variant_label(row)}: {dem.grains} grains, speedup "
-              f"{row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), rate {row['error']:+.1%}, "
-              f"continuum {row['continuum_share']:.0%}", flush=True)
+                   **cost_model(dem.loop_time, dem_log(work / f"dem_{tag}{n}"), dem_log(work / name), threads,
+                                silo.dim))
+        print(f"{silo.scene} W = {n} d{'' if variant is None else ', ' + variant_label(row)}: {dem.grains} grains, "
+              f"speedup {row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), rate {row['error']:+.1%}"
+              f"{'' if noise is None else f' (LIGGGHTS {noise:+.1%})'}, continuum {row['continuum_share']:.0%}",
+              flush=True)
         rows.append(row)
     return rows
+
+
+def dem_log(out: Path) -> Path:
+    """The run's LAMMPS log: log.lammps (2D silo, collapse) or log.txt (tools/dem3d_silo.py)."""
+    return out / "log.lammps" if (out / "log.lammps").exists() else out / "log.txt"
 
 
 def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path) -> dict:
@@ -229,6 +291,8 @@ def table(rows: list[dict]) -> list[str]:
             error += f", steps x{r['steps_ratio']:.2f}"
         if "grain_rate_error" in r:    # the grains that left, counted (rows from 2026-11-26 on)
             error += f" (grains {r['grain_rate_error']:+.1%})"
+        if "noise_floor" in r:    # pure LIGGGHTS from the same packing against LAMMPS
+            error += f"; LIGGGHTS {r['noise_floor']:+.1%}"
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
         depth = f", {variant_label(r, unit='')}" if is_variant(r) else ""
@@ -244,7 +308,8 @@ def plot(rows: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(16, 4.2))
-    for (scene, marker), cores in product((("silo_2d", "o"), ("collapse_2d", "^")), sorted({r["cores"] for r in rows})):
+    scenes = (("silo_2d", "o"), ("silo_3d", "s"), ("collapse_2d", "^"))
+    for (scene, marker), cores in product(scenes, sorted({r["cores"] for r in rows})):
         mine = sorted((r for r in rows if r["scene"] == scene and r["cores"] == cores and not is_variant(r)),
                       key=lambda r: r["grains"])
         if not mine:
@@ -271,17 +336,20 @@ def front(rows: list[dict], ax) -> None:
     """Error against wall time for each silo size run at several depths: the DEM at zero error,
     the hybrid at the fix's zones (star), at other depths (circles, joined) and at other depths
     below the free surface only (diamonds), on the same cores."""
-    silo = [r for r in rows if r["scene"] == "silo_2d" and not r.get("pinned")]
-    for (n, cores) in sorted({(r["width_d"], r["cores"]) for r in silo if is_variant(r)}):
-        mine = [r for r in silo if r["width_d"] == n and r["cores"] == cores]
+    silo = [r for r in rows if r["scene"].startswith("silo") and not r.get("pinned")]
+    for (scene, n, cores) in sorted({(r["scene"], r["width_d"], r["cores"]) for r in silo if is_variant(r)}):
+        mine = [r for r in silo if r["scene"] == scene and r["width_d"] == n and r["cores"] == cores]
+        n = f"{n} ({scene[-2:]})"
         at = lambda r: (r["hybrid_wall_s"], 100 * abs(r["error"]))  # noqa: E731
         default = [r for r in mine if not is_variant(r)]
         depth = sorted((r for r in mine if r.get("depth_d") is not None or not is_variant(r)),
                        key=lambda r: r["hybrid_wall_s"])
         line, = ax.plot(*zip(*map(at, depth)), "o-", label=f"hybrid, W = {n} d, {cores} core(s)")
-        surface = [r for r in mine if r.get("surface_depth_d") is not None]
-        if surface:
-            ax.plot(*zip(*map(at, surface)), "D", color=line.get_color())
+        for marker, rule in (("D", lambda r: r.get("surface_depth_d") is not None and r.get("touch") is None),
+                             ("^", lambda r: r.get("touch") is not None)):
+            chosen = [r for r in mine if rule(r)]
+            if chosen:
+                ax.plot(*zip(*map(at, chosen)), marker, color=line.get_color())
         if default:
             ax.plot(*zip(*map(at, default)), "*", ms=12, color=line.get_color())
         ax.plot([mine[0]["dem_wall_s"]], [0.0], "s", color=line.get_color(), label=f"LAMMPS DEM, W = {n} d")
@@ -289,7 +357,7 @@ def front(rows: list[dict], ax) -> None:
             ax.annotate(variant_label(r) if is_variant(r) else "default", at(r), textcoords="offset points",
                         xytext=(4, 4), fontsize=7)
     ax.set(xscale="log", yscale="symlog", xlabel="wall time, s", ylabel="|discharge rate error| (%)",
-           title="circles: depth; diamonds: depth below the free surface only")
+           title="circles: depth; diamonds: depth below the free surface only; triangles: floor touched")
     ax.title.set_fontsize(9)
     ax.legend(fontsize=8)
 
@@ -324,6 +392,10 @@ def main() -> int:
     ap.add_argument("--threads", type=int, default=2,
                     help="the MPM process's OpenMP threads (OMP_NUM_THREADS of the runs, and the cost model's)")
     ap.add_argument("--sizes", default="40,90,160", help="silo widths in grain diameters ('' = none)")
+    ap.add_argument("--silo3d-sizes", default="12,18,26",
+                    help="3D silo widths in grain diameters ('' = none): about 5k, 18k and 55k spheres")
+    ap.add_argument("--liggghts", action="store_true",
+                    help="3D silo: also discharge each packing with pure LIGGGHTS (the DEM's noise floor)")
     ap.add_argument("--collapse-sizes", default="50,100,200", help="collapse widths L0 in grain diameters ('' = none)")
     ap.add_argument("--tdis", type=float, default=0.4, help="the silo's discharge time after the opening, s")
     ap.add_argument("--seed", type=int, default=12345)
@@ -334,6 +406,9 @@ def main() -> int:
     ap.add_argument("--surface-depths", default="",
                     help="silo: also run the hybrid with these depths below the free surface only (fix keyword "
                          "surface_depth; the floor, walls and orifice keep the fix's depth), grain diameters")
+    ap.add_argument("--touch-floor", action="store_true",
+                    help="silo: also run the hybrid with the floor touched (htouch 2: the side walls and the floor, "
+                         "the region over the orifice discrete), alone and with each --depths/--surface-depths")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of other (scene, size, cores) already in the JSON (each row has its date)")
     ap.add_argument("--pin", action="store_true",
@@ -357,26 +432,39 @@ def main() -> int:
         os.sched_setaffinity(0, set(range(a.np_)))
         os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
     sizes = [int(n) for n in a.sizes.split(",") if n]
-    variants = tuple(("depth_d", float(x)) for x in a.depths.split(",") if x) + \
-        tuple(("surface_depth_d", float(x)) for x in a.surface_depths.split(",") if x)
-    rows = [r for n in sizes for r in run_silo(n, a.np_, a.tdis, a.seed, a.hcell, a.threads, a.work, variants)]
-    rows += [run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)
-             for n in (int(n) for n in a.collapse_sizes.split(",") if n)]
-    for r in rows:
-        r["date"], r["pinned"] = stamp, a.pin
-    if a.keep and path.exists():
-        key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False),  # noqa: E731
-                         *(r.get(k) for k in VARIANTS))
-        new = {key(r) for r in rows}
-        saved, saved_rows = load(path)
-        old = [dict(r, date=r.get("date", saved["date"])) for r in saved_rows if key(r) not in new]
-        rows = old + rows
-    command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --collapse-sizes "
+    variants = tuple(((key, float(x)),) for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths))
+                     for x in values.split(",") if x)
+    if a.touch_floor:    # the floor touched, alone and with each of the other variants
+        variants = variants + ((("touch", 2),),) + tuple((("touch", 2), *v) for v in variants)
+    command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --silo3d-sizes "
+               f"'{a.silo3d_sizes}'{' --liggghts' if a.liggghts else ''} --collapse-sizes "
                f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
                f"{f' --surface-depths {a.surface_depths}' if a.surface_depths else ''}"
-               f"{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
-    save(path, rows, date=stamp, np=a.np_, command=command)
-    write(rows, command, stamp, a.out)
+               f"{' --touch-floor' if a.touch_floor else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
+    saved_rows = load(path)[1] if a.keep and path.exists() else []
+    saved_date = json.loads(path.read_text())["date"] if saved_rows else stamp
+    key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False),  # noqa: E731
+                     *(r.get(k) for k in VARIANTS))
+    rows: list[dict] = []
+
+    def finish(new: list[dict]) -> None:
+        """Adds a size's rows and writes the JSON and the report so far (a long invocation that
+        stops keeps what it measured)."""
+        for r in new:
+            r["date"], r["pinned"] = stamp, a.pin
+        rows.extend(new)
+        done = {key(r) for r in rows}
+        old = [dict(r, date=r.get("date", saved_date)) for r in saved_rows if key(r) not in done]
+        save(path, old + rows, date=stamp, np=a.np_, command=command)
+        write(old + rows, command, stamp, a.out)
+
+    silo2d, silo3d = (cls(a.np_, a.seed, a.tdis, a.hcell) for cls in (Silo2d, Silo3d))
+    for n in sizes:
+        finish(run_silo(silo2d, n, a.threads, a.work, variants))
+    for n in (int(n) for n in a.silo3d_sizes.split(",") if n):
+        finish(run_silo(silo3d, n, a.threads, a.work, variants, a.liggghts))
+    for n in (int(n) for n in a.collapse_sizes.split(",") if n):
+        finish([run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)])
     return 0
 
 
