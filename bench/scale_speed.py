@@ -174,44 +174,55 @@ def variant_label(r: dict, unit: str = " d") -> str:
                      for key in VARIANTS if r.get(key) is not None)
 
 
-class Silo2d:
-    """The deep 2D silo (tools/dem_silo.py; hybrid_2d.lmp's zones are the fix's with hcell 0)."""
-    scene, dim, orifice_d = "silo_2d", 2, ORIFICE
+class Silo:
+    """A deep silo scene: its size in grain diameters, how to prepare its packing (cached) and
+    run it as DEM or hybrid, and the hybrid's deck variables for the fix's zones."""
+    scene: str
+    dim: int
+    orifice_d: int
+    log: str                       # the LAMMPS log a run writes in its directory
 
-    def __init__(self, np_: int, seed: int, tdis: float, hcell: str):
+    def __init__(self, np_: int, seed: int, tdis: float, hcell: str, **hybrid_vars):
         self.common = dict(np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
-        self.hybrid_vars = {"hcell": hcell}
+        self.hybrid_vars = dict(hcell=hcell, **hybrid_vars)
+
+    def size(self, n: int) -> dict:
+        return silo_size(n, self.orifice_d)
+
+
+class Silo2d(Silo):
+    """The deep 2D silo (tools/dem_silo.py; hybrid_2d.lmp's zones are the fix's with hcell 0)."""
+    scene, dim, orifice_d, log = "silo_2d", 2, ORIFICE, "log.lammps"
 
     def prepare(self, n: int, work: Path) -> None:    # cached
-        size = silo_size(n, self.orifice_d)
+        size = self.size(n)
         prepare_silo(size["width"], size["height"], D, self.common["seed"], work / f"prep_{n}",
-                     np_=self.common["np_"], timeout=4 * 3600)
+                     np_=self.common["np_"], timeout=self.common["timeout"])
 
     def run(self, n: int, out: Path, hybrid_vars: dict | None = None):
-        return run_dem_silo(out=out, hybrid_vars=hybrid_vars, **silo_size(n, self.orifice_d), **self.common)
+        return run_dem_silo(out=out, hybrid_vars=hybrid_vars, **self.size(n), **self.common)
 
 
-class Silo3d:
+class Silo3d(Silo):
     """The deep 3D silo of square section and circular orifice (tools/dem3d_silo.py, H = 3 W, D = 6 d).
     Its hybrid twin (hybrid_3d.lmp) runs at the fix's zones: the grid from the grains (4 d cells),
     depth and band the fix's, the four side walls touched, exchange every EVERY steps."""
-    scene, dim, orifice_d = "silo_3d", 3, ORIFICE_3D
+    scene, dim, orifice_d, log = "silo_3d", 3, ORIFICE_3D, "log.txt"
 
     def __init__(self, np_: int, seed: int, tdis: float, hcell: str):
-        self.common = dict(np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
-        self.hybrid_vars = dict(hcell=hcell, hevery=EVERY, hdepth=0, hband=0, htouch=1)
+        super().__init__(np_, seed, tdis, hcell, hevery=EVERY, hdepth=0, hband=0, htouch=1)
 
     def prepare(self, n: int, work: Path) -> None:    # cached
-        size = silo_size(n, self.orifice_d)
+        size = self.size(n)
         dem3d_silo.prepare(size["width"], size["height"], size["orifice"], D, self.common["seed"], {},
-                           self.common["np_"], timeout=4 * 3600)
+                           self.common["np_"], timeout=self.common["timeout"])
 
     def run(self, n: int, out: Path, hybrid_vars: dict | None = None, code: str | None = None):
         code = code or ("hybrid" if hybrid_vars is not None else "lammps")
-        return dem3d_silo.run(code, out=out, hybrid_vars=hybrid_vars, **silo_size(n, self.orifice_d), **self.common)
+        return dem3d_silo.run(code, out=out, hybrid_vars=hybrid_vars, **self.size(n), **self.common)
 
 
-def run_silo(silo, n: int, threads: int, work: Path, variants: tuple[tuple[tuple[str, float], ...], ...] = (),
+def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple[tuple[str, float], ...], ...] = (),
              liggghts: bool = False) -> list[dict]:
     """The DEM and the hybrid at the fix's zones, then the hybrid at each of `variants` (pairs of a
     key of VARIANTS, the zone oracle's depth, the depth below the free surface only or the faces
@@ -240,7 +251,7 @@ def run_silo(silo, n: int, threads: int, work: Path, variants: tuple[tuple[tuple
                    mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=silo.hybrid_vars["hcell"],
                    **({} if noise is None else dict(noise_floor=noise, rate_liggghts=lig.rate)),
                    **speeds(dem, hyb, dem_cpu, hyb_cpu),
-                   **cost_model(dem.loop_time, dem_log(work / f"dem_{tag}{n}"), dem_log(work / name), threads,
+                   **cost_model(dem.loop_time, work / f"dem_{tag}{n}" / silo.log, work / name / silo.log, threads,
                                 silo.dim))
         print(f"{silo.scene} W = {n} d{'' if variant is None else ', ' + variant_label(row)}: {dem.grains} grains, "
               f"speedup {row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), rate {row['error']:+.1%}"
@@ -248,11 +259,6 @@ def run_silo(silo, n: int, threads: int, work: Path, variants: tuple[tuple[tuple
               flush=True)
         rows.append(row)
     return rows
-
-
-def dem_log(out: Path) -> Path:
-    """The run's LAMMPS log: log.lammps (2D silo, collapse) or log.txt (tools/dem3d_silo.py)."""
-    return out / "log.lammps" if (out / "log.lammps").exists() else out / "log.txt"
 
 
 def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path) -> dict:
