@@ -8,6 +8,7 @@
 
 #include "coupler/oracle.hpp"
 #include "coupler/stencil.hpp"
+#include "coupler/support_force.hpp"
 #include "coupler/tuning.hpp"
 #include "coupler/zones.hpp"
 #include "mpm/state_file.hpp"
@@ -82,8 +83,7 @@ CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
   zones_.assign(coupler::num_cells(static_cast<const coupler::GridGeometry<D>&>(grid)), coupler::kDiscrete);
   dem_mass_.assign(grid.num_nodes(), 0.0);
   dem_momentum_.assign(grid.num_nodes(), Vec<D>::Zero());
-  support_force_.assign(grid.num_nodes(), Vec<D>::Zero());
-  support_mass_.assign(grid.num_nodes(), 0.0);
+  support_.assign(grid.num_nodes(), coupler::SupportNode<D>{});
   touched_slot_.assign(grid.num_nodes(), -1);
   const std::string dir = coupler::get_text(hello.continuum.output_path);
   if (hello.continuum.output_every > 0 && !dir.empty()) {
@@ -441,8 +441,20 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
         const coupler::CellMoments<D> left = total[k].scaled(remainder);
         double own_mass = 0;
         for (std::size_t p : own[k]) own_mass += pts.mass[p];
-        if (own_mass >= 0.5 * left.mass) give(own[k], left);
-        else make_points(k, remainder, 1.0f);
+        const MovingCell& m = moving_[k];
+        if (own_mass >= 0.5 * left.mass) {
+          give(own[k], left);
+        } else if (own[k].empty() && !m.members.empty() && m.points.moments.mass >= 0.5 * left.mass) {
+          // Points step 2 removed (a discrete cell's waiting points) take the remainder again,
+          // corrected rigidly onto it: remade at the cell's lattice at every rezone, they jumped
+          // there and lost their deformation, and the run made and removed them again and again.
+          for (std::size_t p : m.members) remove[p] = 0, pts.weight[p] = 1.0f;
+          points_removed_ -= static_cast<std::int64_t>(m.members.size());
+          correct_points(m.members, coupler::rigid_correction<D>(m.points, left, centre));
+          own[k] = m.members;
+        } else {
+          make_points(k, remainder, 1.0f);
+        }
       } else {
         s.grains += remainder;
       }
@@ -558,16 +570,12 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   double agreement_change = 0;
   std::vector<Vec<D>> impulse_per_mass(touched_.size()), support(touched_.size(), Vec<D>::Zero());
   // The support force between exchanges: what the agreement had to add over the last
-  // interval becomes a steady force for the next one (F += gain * lambda / interval), so
-  // grains resting on the continuum are held between exchanges, not only at them.
+  // interval becomes a steady force for the next one (coupler/support_force.hpp), so grains
+  // resting on the continuum are held between exchanges, not only at them.
   const double gain = hello_.continuum.support_gain;
-  std::vector<Vec<D>> old_force(touched_.size());
-  std::vector<double> old_mass(touched_.size());
-  for (std::size_t t = 0; t < touched_.size(); ++t) {
-    old_force[t] = support_force_[touched_[t]];
-    old_mass[t] = support_mass_[touched_[t]];
-  }
-  for (std::size_t k : support_nodes_) support_force_[k].setZero(), support_mass_[k] = 0.0;
+  std::vector<coupler::SupportNode<D>> old_support(touched_.size());
+  for (std::size_t t = 0; t < touched_.size(); ++t) old_support[t] = support_[touched_[t]];
+  for (std::size_t k : support_nodes_) support_[k] = coupler::SupportNode<D>{};
   support_nodes_.clear();
   for (std::size_t t = 0; t < touched_.size(); ++t) {
     const std::size_t k = touched_[t];
@@ -588,21 +596,11 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       agreement_change += 0.5 * m_mpm * (v_mpm_new.squaredNorm() - v_mpm.squaredNorm());
       ++shared_nodes_;
       if (gain > 0) {
-        // A force set when the node held more mass would accelerate what is left there
-        // beyond anything the agreement asked for: scale it with the node's reduced mass.
         const double reduced = m_dem * m_mpm / (m_dem + m_mpm);
-        // A reaction between the two sides never drives their relative motion: a force that
-        // pushes the grains along their velocity relative to the points feeds energy into the
-        // flow (the energy ledger measured it: a gravity-free shearing patch gained 3x its
-        // kinetic energy), so it is not carried into the next interval.
-        const bool passive = old_force[t].dot(v_dem - v_mpm) <= 0.0;
-        const double carry = old_mass[t] > 0 && passive ? std::min(1.0, reduced / old_mass[t]) : 0.0;
-        Vec<D> force = ((1.0 - coupler::kSupportLeak) * carry) * old_force[t];
-        if (interval_ > 0) force += gain * m_dem * (common - v_dem) / interval_;
-        support_force_[k] = force;
-        support_mass_[k] = reduced;
+        support_[k] = coupler::next_support<D>(old_support[t], v_dem - v_mpm, reduced, closing,
+                                               m_dem * (common - v_dem), interval_, gain);
         support_nodes_.push_back(k);
-        support[t] = force / m_dem;
+        support[t] = support_[k].force / m_dem;
       }
     }
     impulse_per_mass[t] = common - v_dem;  // lambda_i / m_dem_i
@@ -647,7 +645,7 @@ void CoupledContinuum<D>::apply_support_reaction() {
     Vec<D> a = Vec<D>::Zero();
     coupler::for_each_stencil_node<D>(coupler::QuadraticStencil<D>(grid.to_cell_units(pts.x[p])), geometry,
                                       [&](std::size_t k, double w, const auto&) {
-                                        if (grid.mass[k] > 0) a -= (w / grid.mass[k]) * support_force_[k];
+                                        if (grid.mass[k] > 0) a -= (w / grid.mass[k]) * support_[k].force;
                                       });
     pts.body_accel[p] = a;
   }
@@ -794,8 +792,10 @@ void CoupledContinuum<D>::save(const std::string& path, std::int64_t dem_step, s
   state.zones = zones_;
   for (std::size_t k : support_nodes_) {
     state.support_nodes.push_back(k);
-    state.support_forces.push_back(support_force_[k]);
-    state.support_masses.push_back(support_mass_[k]);
+    state.support_forces.push_back(support_[k].force);
+    state.support_masses.push_back(support_[k].reduced_mass);
+    state.support_budgets.push_back(support_[k].budget);
+    state.support_gaps.push_back(support_[k].gap);
   }
   state.time = time_;
   state.solver_time = solver_.time();
@@ -820,13 +820,15 @@ void CoupledContinuum<D>::load(const std::string& path) {
     throw UserError("the MPM state " + path + " was saved with another box, cell size or model than this run's "
                     "fix hybrid/mpm line; restart with the same box, cell and model");
   zones_ = std::move(state.zones);
-  for (std::size_t k : support_nodes_) support_force_[k].setZero(), support_mass_[k] = 0.0;
+  for (std::size_t k : support_nodes_) support_[k] = coupler::SupportNode<D>{};
   support_nodes_.clear();
   for (std::size_t i = 0; i < state.support_nodes.size(); ++i) {
     const std::size_t k = state.support_nodes[i];
-    if (k >= support_force_.size()) throw UserError("the MPM state " + path + " names a node outside the grid");
-    support_force_[k] = state.support_forces[i];
-    support_mass_[k] = state.support_masses[i];
+    if (k >= support_.size()) throw UserError("the MPM state " + path + " names a node outside the grid");
+    support_[k].force = state.support_forces[i];
+    support_[k].reduced_mass = state.support_masses[i];
+    support_[k].budget = state.support_budgets[i];
+    support_[k].gap = state.support_gaps[i];
     support_nodes_.push_back(k);
   }
   time_ = state.time;

@@ -2,7 +2,7 @@
 //
 // Layout (floating point data float64 in the file as in memory, so values round-trip exactly):
 //
-//   /                  attributes: format = "mpm-coupled-state", format_version (int32) = 1,
+//   /                  attributes: format = "mpm-coupled-state", format_version (int32) = 2,
 //                      dimension (int32), mpm_version (string), time, solver_time (float64),
 //                      solver_steps, dem_step, exchanges (int64), cell (float64),
 //                      box_lo, box_hi (3 x float64), model (int32, coupler::ModelId)
@@ -16,6 +16,10 @@
 //   /support_nodes     uint64, nodes with a support force
 //   /support_forces    support_nodes x D
 //   /support_masses    reduced mass of each support node when its force was set
+//   /support_budgets   energy each support force may still give the relative motion (J, J/m in 2D)
+//   /support_gaps      support_nodes x D, v_dem - v_mpm the last agreement left at each
+//
+// Version 2 added the support budgets and gaps (coupler/support_force.hpp).
 #include "mpm/state_file.hpp"
 
 #include <filesystem>
@@ -29,7 +33,7 @@ namespace mpm {
 namespace {
 
 constexpr const char* kFormat = "mpm-coupled-state";
-constexpr int kFormatVersion = 1;
+constexpr int kFormatVersion = 2;
 constexpr const char* kKind = "MPM state file";
 
 /// Empty if the state's arrays have consistent lengths, else what is wrong.
@@ -42,10 +46,12 @@ std::string inconsistency(const ContinuumState<D>& s) {
       why = "points field '" + std::string(name) + "' has " + std::to_string(field.size()) + " values for " +
             std::to_string(n) + " points";
   });
-  if (why.empty() && (s.support_forces.size() != s.support_nodes.size() ||
-                      s.support_masses.size() != s.support_nodes.size()))
-    why = std::to_string(s.support_forces.size()) + " support forces and " + std::to_string(s.support_masses.size()) +
-          " support masses for " + std::to_string(s.support_nodes.size()) + " support nodes";
+  const std::size_t nodes = s.support_nodes.size();
+  if (why.empty() && (s.support_forces.size() != nodes || s.support_masses.size() != nodes ||
+                      s.support_budgets.size() != nodes || s.support_gaps.size() != nodes))
+    why = std::to_string(s.support_forces.size()) + " support forces, " + std::to_string(s.support_masses.size()) +
+          " masses, " + std::to_string(s.support_budgets.size()) + " budgets and " +
+          std::to_string(s.support_gaps.size()) + " gaps for " + std::to_string(nodes) + " support nodes";
   return why;
 }
 
@@ -203,6 +209,8 @@ void save_state(const std::string& path, const ContinuumState<D>& s) {
       write_array(h5, root, "support_nodes", s.support_nodes);
       write_array(h5, root, "support_forces", s.support_forces);
       write_array(h5, root, "support_masses", s.support_masses);
+      write_array(h5, root, "support_budgets", s.support_budgets);
+      write_array(h5, root, "support_gaps", s.support_gaps);
     }
     h5.ok(H5Fclose(file.release()), "close the file", "");
   });
@@ -254,6 +262,8 @@ ContinuumState<D> load_state(const std::string& path) {
     read_array(h5, top, "support_nodes", s.support_nodes);
     read_array(h5, top, "support_forces", s.support_forces);
     read_array(h5, top, "support_masses", s.support_masses);
+    read_array(h5, top, "support_budgets", s.support_budgets);
+    read_array(h5, top, "support_gaps", s.support_gaps);
     if (const std::string why = inconsistency(s); !why.empty())
       throw UserError("the MPM state file '" + path + "' is inconsistent: " + why);
     return s;

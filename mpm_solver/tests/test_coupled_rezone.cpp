@@ -129,4 +129,40 @@ TEST(CoupledRezone, RestsDoNotPileUpInThePointsThatTakeThem) {
   EXPECT_GT(most, 0.95 * kSolidContent) << "the cells around filled up to their solid content";
 }
 
+// A discrete cell whose points find no other points within reach to take them keeps them,
+// waiting for room for grains; every rezone plans it again (points where the zone wants none).
+// Its points must wait where they are: corrected in place, not removed and remade at the
+// cell's lattice every rezone (which moved them and reset their deformation, so a bed with
+// such cells never came to rest).
+TEST(CoupledRezone, KeptRestWaitsInTheSamePoints) {
+  mpm::CoupledContinuum<2> continuum(square_box());
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+  const std::uint64_t x = coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(5.5, 5.5)));
+  zones[x] = coupler::kContinuum;
+  Rezone in;
+  add_grains(in, grid, x, 0.8 * kSolidContent);
+  const double mass = rezone(continuum, zones, in).mass;
+  ASSERT_NEAR(mass, 0.8 * kSolidContent, 1e-12 * mass);
+
+  zones[x] = coupler::kDiscrete;
+  const auto& pts = continuum.solver().points();
+  std::vector<Eigen::Vector2d> where;
+  for (int cycle = 0; cycle < 4; ++cycle) {
+    const coupler::StepAck out = rezone(continuum, zones, Rezone{});
+    EXPECT_NEAR(out.mass, mass, 1e-12 * mass) << "cycle " << cycle;
+    ASSERT_EQ(out.rests_kept, 1) << "cycle " << cycle;
+    EXPECT_EQ(out.points_made, 0) << "cycle " << cycle;
+    EXPECT_EQ(out.points_removed, 0) << "cycle " << cycle;
+    ASSERT_GT(pts.size(), 0u);
+    std::vector<Eigen::Vector2d> now(pts.x.begin(), pts.x.end());
+    if (!where.empty()) {
+      ASSERT_EQ(now.size(), where.size());
+      for (std::size_t p = 0; p < now.size(); ++p) EXPECT_LT((now[p] - where[p]).norm(), 1e-12 * kCell) << "cycle " << cycle;
+    }
+    where = now;
+    EXPECT_EQ(point_mass_per_cell(continuum).count(x), 1u);
+  }
+}
+
 }  // namespace

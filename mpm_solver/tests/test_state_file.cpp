@@ -71,6 +71,8 @@ ContinuumState<D> random_state(int n_points, int n_cells, int n_support, unsigne
     s.support_nodes.push_back(rng());
     s.support_forces.push_back(vec());
     s.support_masses.push_back(u(rng));
+    s.support_budgets.push_back(u(rng));
+    s.support_gaps.push_back(vec());
   }
   s.time = u(rng);
   s.solver_time = u(rng);
@@ -106,6 +108,8 @@ void expect_identical(const ContinuumState<D>& a, const ContinuumState<D>& b) {
   EXPECT_TRUE(same_bits(a.support_nodes, b.support_nodes));
   EXPECT_TRUE(same_bits(a.support_forces, b.support_forces));
   EXPECT_TRUE(same_bits(a.support_masses, b.support_masses));
+  EXPECT_TRUE(same_bits(a.support_budgets, b.support_budgets));
+  EXPECT_TRUE(same_bits(a.support_gaps, b.support_gaps));
   EXPECT_EQ(std::memcmp(&a.time, &b.time, sizeof a.time), 0);
   EXPECT_EQ(std::memcmp(&a.solver_time, &b.solver_time, sizeof a.solver_time), 0);
   EXPECT_EQ(a.solver_steps, b.solver_steps);
@@ -228,7 +232,7 @@ TEST(StateFile, OtherFormatVersionIsRefused) {
     const int version = 99;
     ASSERT_GE(H5Awrite(attr.get(), H5T_NATIVE_INT, &version), 0);
   }
-  expect_user_error([&] { load_state<2>(path); }, {path, "format version 99", "reads version 1"});
+  expect_user_error([&] { load_state<2>(path); }, {path, "format version 99", "reads version 2"});
 }
 
 TEST(StateFile, SaveErrorNamesThePath) {
@@ -241,6 +245,9 @@ TEST(StateFile, InconsistentLengthsAreRefusedOnSave) {
   TempDir tmp("inconsistent");
   ContinuumState<2> s = random_state<2>(3, 1, 2, 9);
   s.support_forces.pop_back();
+  EXPECT_THROW(save_state(tmp.file("bad.mpm.h5"), s), std::invalid_argument);
+  s = random_state<2>(3, 1, 2, 9);
+  s.support_budgets.pop_back();
   EXPECT_THROW(save_state(tmp.file("bad.mpm.h5"), s), std::invalid_argument);
 }
 

@@ -4,13 +4,6 @@
 
 namespace coupler {
 
-/// Share of the support force between exchanges that each exchange forgets (design.md 5.4).
-/// Both sides feel the force through their transfer weights, which smooth it: a node-to-node
-/// oscillating part acts on neither side, so the agreement cannot correct it and a pure
-/// integral lets it grow without bound (a settled column's vertical stress rose 10 % above its
-/// weight); 10 % keeps it bounded and leaves the steady support within a few percent.
-inline constexpr double kSupportLeak = 0.1;
-
 /// A grain made from points (enrichment, design.md 5.6) that an old grain overlaps shrinks to
 /// fit, down to this share of its radius, and is dropped if it would have to shrink more (an
 /// overlap would inject elastic energy). Dropping every overlapped candidate left gaps along the

@@ -8,6 +8,7 @@
 
 #include "coupler/conversion.hpp"
 #include "coupler/protocol.hpp"
+#include "coupler/support_force.hpp"
 #include "mpm/output.hpp"
 #include "mpm/solver.hpp"
 
@@ -130,9 +131,8 @@ class CoupledContinuum {
   std::vector<std::size_t> touched_;
   std::vector<std::int64_t> touched_slot_;  ///< node -> index in touched_, -1 if untouched
   double interval_ = 0;               ///< time since the previous exchange, s
-  std::vector<Vec<D>> support_force_; ///< force of the continuum on the grains per node until the next exchange
-  std::vector<std::size_t> support_nodes_;  ///< nodes where support_force_ is set
-  std::vector<double> support_mass_;  ///< reduced mass m_dem m_mpm / (m_dem + m_mpm) when the force was set
+  std::vector<coupler::SupportNode<D>> support_;  ///< each node's support force until the next exchange
+  std::vector<std::size_t> support_nodes_;  ///< nodes where a support force is set
   std::unique_ptr<SnapshotWriter<D>> writer_;
 };
 

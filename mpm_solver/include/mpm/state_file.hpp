@@ -18,6 +18,8 @@ struct ContinuumState {
   std::vector<std::uint64_t> support_nodes;  ///< nodes with a support force
   std::vector<Vec<D>> support_forces;        ///< same length as support_nodes
   std::vector<double> support_masses;        ///< reduced mass each support force was set with, same length
+  std::vector<double> support_budgets;       ///< energy each may still give the relative motion, same length
+  std::vector<Vec<D>> support_gaps;          ///< v_dem - v_mpm the last agreement left, same length
   double time = 0;                           ///< DEM time of the continuum's state, s
   double solver_time = 0;                    ///< the MPM solver's own clock, s
   long solver_steps = 0;                     ///< MPM steps taken so far

@@ -1,0 +1,129 @@
+// The support force of a shared node (coupler/support_force.hpp): it holds a steady load with
+// no relative motion for as long as the load lasts, and it never gives the relative motion of
+// the two sides more energy than the coupling took out of it at the node.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "coupler/support_force.hpp"
+
+namespace {
+
+using Vec2 = Eigen::Vector2d;
+constexpr double kInterval = 1e-4;  // s, between exchanges
+constexpr double kReduced = 0.01;   // kg/m, the node's reduced mass
+
+/// One exchange at a node: the agreement closes the share `closing` of the gap, giving the
+/// grains the momentum closing * mu * (v_mpm - v_dem).
+coupler::SupportNode<2> exchange(const coupler::SupportNode<2>& old, const Vec2& gap, double closing = 1.0,
+                                 double reduced = kReduced) {
+  return coupler::next_support<2>(old, gap, reduced, closing, -closing * reduced * gap, kInterval, 1.0);
+}
+
+TEST(SupportForce, HoldsASteadyLoadWithNoRelativeMotion) {
+  // the points sink through the grains by 1 mm/s in the first interval (their weight): the
+  // agreement stops them, and the force it leaves holds them from then on
+  coupler::SupportNode<2> node = exchange({}, Vec2(0, 1e-3));
+  const Vec2 load = node.force;
+  EXPECT_NEAR(load.y(), -kReduced * 1e-3 / kInterval, 1e-15);
+  for (int k = 0; k < 10000; ++k) node = exchange(node, Vec2::Zero());
+  EXPECT_EQ(node.force, load) << "a force with nothing to do keeps its value: no leak";
+  EXPECT_GT(node.budget, 0);
+}
+
+/// Points of mass m resting on grains that rattle about rest (a node in a settled bed): over
+/// each interval the points fall under their weight less the support's reaction; at each
+/// exchange the agreement closes the share `closing` of their gap to the grains. Returns the
+/// points' mean velocity (m/s, up positive) and the mean support force over the second half.
+struct Resting {
+  double velocity = 0, force = 0;
+};
+Resting rest_on_rattling_grains(double forget, int exchanges = 20000) {
+  constexpr double kPoints = 0.02, kGrains = 0.02, kG = 9.81, kRattle = 2e-4;  // kg/m, kg/m, m/s^2, m/s
+  const double reduced = kPoints * kGrains / (kPoints + kGrains), closing = 0.5;
+  std::mt19937 rng(3);
+  std::normal_distribution<double> rattle(0.0, kRattle);
+  coupler::SupportNode<2> node;
+  Vec2 v_points = Vec2::Zero();
+  Resting mean;
+  for (int k = 0; k < exchanges; ++k) {
+    v_points += kInterval * (Vec2(0, -kG) - node.force / kPoints);  // the points feel -F
+    const Vec2 v_grains(rattle(rng), rattle(rng));                     // held by the bed below
+    const Vec2 gap = v_grains - v_points;
+    const Vec2 transfer = -closing * reduced * gap;                    // to the grains
+    v_points -= transfer / kPoints;
+    node.force *= 1.0 - forget;  // (a leak: a share of the force forgotten at every exchange)
+    node = coupler::next_support<2>(node, gap, reduced, closing, transfer, kInterval, 1.0);
+    if (2 * k >= exchanges) mean.velocity += v_points.y() / (exchanges / 2), mean.force += node.force.y() / (exchanges / 2);
+  }
+  return mean;
+}
+
+TEST(SupportForce, HoldsTheLoadOfPointsRestingOnRattlingGrainsWithoutCreep) {
+  // the force's work on the rattling averages out and the agreement's dissipation keeps the
+  // budget positive: the force carries the points' weight and they do not sink
+  const Resting held = rest_on_rattling_grains(0.0);
+  EXPECT_NEAR(held.force, -0.02 * 9.81, 0.01 * 0.02 * 9.81);
+  EXPECT_LT(std::abs(held.velocity), 1e-5) << "m/s (measured 1.8e-6: the rattling's mean over the samples)";
+  // a force that forgets 10 % per exchange must be earned again by slip: the points creep
+  const Resting leaky = rest_on_rattling_grains(0.1);
+  EXPECT_LT(leaky.velocity, -1e-4) << "m/s (measured -2.7e-4, the force 9 % short)";
+}
+
+TEST(SupportForce, DropsAForceThatKeepsDrivingTheRelativeMotion) {
+  // material streams through the node along the force (a shearing flow): the force is carried
+  // while it gives back what the coupling took, then dropped
+  coupler::SupportNode<2> node = exchange({}, Vec2(-1e-3, 0));  // force along +x on the grains
+  ASSERT_GT(node.force.x(), 0);
+  int kept = 0;
+  for (int k = 0; k < 20; ++k) {
+    const Vec2 old = node.force;
+    // the grains move along +x relative to the points by far more than the agreement closes
+    node = exchange(node, Vec2(2e-3, 0), 0.01);
+    if (node.force.x() > 0 && (node.force - old).norm() < 0.5 * old.norm()) ++kept;
+    EXPECT_GE(node.budget, 0);
+  }
+  EXPECT_LT(kept, 20) << "the force was dropped once it had overdrawn the node's budget";
+}
+
+TEST(SupportForce, NeverGivesBackMoreThanTheCouplingTook) {
+  // random gaps, closings and masses: summed over the exchanges, the energy the force gave the
+  // relative motion (its work with the trapezoid of the gaps) exceeds what the agreement
+  // dissipated plus what the force took from that motion by at most the last interval of each
+  // force that was dropped (the budget is checked after the interval it pays for)
+  std::mt19937 rng(11);
+  std::normal_distribution<double> gap_of(0.0, 1e-3);
+  std::uniform_real_distribution<double> share(0.05, 1.0);
+  for (int run = 0; run < 50; ++run) {
+    coupler::SupportNode<2> node;
+    double given = 0, taken = 0, overdrawn = 0;
+    for (int k = 0; k < 200; ++k) {
+      const Vec2 gap(gap_of(rng), gap_of(rng));
+      const double closing = share(rng), reduced = kReduced * share(rng);
+      double work = 0;
+      if (node.reduced_mass > 0) {
+        work = node.force.dot(0.5 * (node.gap + gap)) * kInterval;
+        (work > 0 ? given : taken) += std::abs(work);
+      }
+      const coupler::SupportNode<2> next = exchange(node, gap, closing, reduced);
+      taken += 0.5 * reduced * gap.squaredNorm() * closing * (2 - closing);
+      const Vec2 added = -(closing / kInterval) * reduced * gap;
+      if (node.reduced_mass > 0 && (next.force - added).norm() == 0 && node.force.norm() > 0)
+        overdrawn += work - node.budget;  // a dropped force
+      ASSERT_GE(next.budget, 0);
+      node = next;
+    }
+    EXPECT_LE(given, taken + overdrawn + 1e-18) << "run " << run;
+  }
+}
+
+TEST(SupportForce, ScalesDownWithTheNodesMassNeverUp) {
+  coupler::SupportNode<2> node = exchange({}, Vec2(0, 1e-3));
+  const Vec2 load = node.force;
+  node = exchange(node, Vec2::Zero(), 1.0, 0.5 * kReduced);
+  EXPECT_NEAR((node.force - 0.5 * load).norm(), 0, 1e-15);
+  node = exchange(node, Vec2::Zero(), 1.0, 4 * kReduced);
+  EXPECT_NEAR((node.force - 0.5 * load).norm(), 0, 1e-15);
+}
+
+}  // namespace
