@@ -107,9 +107,11 @@ TEST(SupportForce, NeverGivesBackMoreThanTheCouplingTook) {
       }
       const coupler::SupportNode<2> next = exchange(node, gap, closing, reduced);
       taken += 0.5 * reduced * gap.squaredNorm() * closing * (2 - closing);
-      const Vec2 added = -(closing / kInterval) * reduced * gap;
-      if (node.reduced_mass > 0 && (next.force - added).norm() == 0 && node.force.norm() > 0)
-        overdrawn += work - node.budget;  // a dropped force
+      if (node.reduced_mass > 0 && work > node.budget) {  // overdrawn: the old force is dropped
+        overdrawn += work - node.budget;
+        const Vec2 added = -(closing / kInterval) * reduced * gap;
+        EXPECT_LE((next.force - added).norm(), 1e-12 * added.norm()) << "run " << run << ", exchange " << k;
+      }
       ASSERT_GE(next.budget, 0);
       node = next;
     }
