@@ -77,9 +77,7 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs) -> lis
         name = f"hybrid_a{aspect:g}_e{every}_o{oracle}"
         hyb = run_collapse(**common, out=work / name, hybrid_vars={"hybrid": 2, "hevery": every, "hadapt": oracle})
         points = load_run(work / name / "frames").frame(-1)["position"]
-        surface = np.array(hyb.profile).T
-        if len(points):    # (a continuum may have turned back into grains whole)
-            surface = combine_surfaces(surface, points_surface(points, width / 20, 2 * D))
+        surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, width / 20, 2 * D))
         rows.append(dict(
             scene="collapse_2d", grains=ref.grains, aspect=aspect, exchange_every=every, oracle_every=oracle,
             runout_error=hyb.runout / ref.runout - 1, surface_error=surface_error(surface, ref_surface, h0),

@@ -113,10 +113,10 @@ def dem_outcome(name: str, res, out: Path, points=None) -> Outcome:
     surface = np.array(res.profile).T
     size, height = f"{res.grains} grains", res.final_height
     if points is not None:    # the hybrid's continuum: the surface is the upper envelope of both
-        size += f" + {len(points)} points"
-    if points is not None and len(points):   # (a continuum may have turned back into grains whole)
         surface = combine_surfaces(surface, points_surface(points, res.width / 20, 2 * D))
-        height = max(height, float(points[:, 1].max()))
+        size += f" + {len(points)} points"
+        if len(points):       # (a continuum may have turned back into grains whole)
+            height = max(height, float(points[:, 1].max()))
     return Outcome(name, LABELS[name], res.runout, tuple(surface), res.wall_time, size, str(res.steps),
                    height / res.width, extra={"ms_per_step": 1e3 * res.loop_time / max(res.steps, 1)},
                    kinetic_energy=thermo_kinetic_energy(out / "log.lammps"))
