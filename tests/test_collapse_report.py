@@ -88,10 +88,12 @@ def test_adaptive_hybrid_is_near_the_dem_and_rests_when_it_rests(report):
     checks later; the same in three runs: a hybrid run is deterministic on one machine, but the
     code is built for its CPU (-march=native), so another CPU is another realization). Before the
     energy ledger's fixes: runout -39 %, surface 7.1 %, 2.6-5x the DEM's steps. Since the kept
-    rests and the support force's energy budget (2026-11-26, same machine): runout -6.9 %, surface
-    2.4 %, at rest after 1.33x (-8.7 %, 1.00x with the kept rests alone). The targets (runout
-    within 5 %, at rest within 1.2x) are not met in every realization (the six numerics of
-    bench/results/settled_bed.md's table spread from +3.6 to -13.7 %, 1.00-1.33x).
+    rests and the support force's energy budget (2026-11-26, same machine, deterministic over two
+    runs): runout +3.3 %, surface 2.6 %, at rest after 0.92x (67,802 steps); -8.7 %, 1.00x with the
+    kept rests alone, -6.9 %, 1.33x with a prototype of the same rule (another order of
+    floating-point operations). The targets (runout within 5 %, at rest within 1.2x) are not met in
+    every realization (the six numerics of bench/results/settled_bed.md's table spread from +3.6
+    to -13.7 %, 1.00-1.33x).
     The bounds are the measured errors with a margin."""
     _, runs = report
     adaptive, dem = runs["hybrid_adaptive"], runs["dem"]
