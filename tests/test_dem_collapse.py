@@ -15,10 +15,17 @@ size (L0 = 50 d, 5200 grains) a = 2 gives 4.26, 17 % above the published upper b
 """
 from __future__ import annotations
 
+import re
+import sys
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 from dem_collapse import run, run_bed
+from hgtools.grains import read_dump
+
+REPO = Path(__file__).resolve().parent.parent
 
 FRICTION = 0.5      # mu, grain-grain, grain-floor and grain-wall
 TOLERANCE = 0.25    # within 25 % of the published range
@@ -62,3 +69,42 @@ def test_gated_column_stays_a_bed_at_rest(tmp_path, lmp):
     assert 300 <= bed.grains <= 1500
     assert bed.ke_per_grain < 0.5 * bed.ke_rest, bed
     assert abs(bed.top_vy) < 1e-3, bed        # m/s
+
+
+def test_collapse_stops_at_tmax_and_dumps_the_contact_stress(tmp_path, lmp):
+    """Deck variables `tmax` (the collapse stops at rest or at tmax) and `stressout 1` (each
+    grain's contact stress times its volume at the end, bench/deposit_rest.py). Stopped at 0.1 s
+    the column is still moving; run to rest, the deposit's stress is compressive and its ratio
+    tau/p lies in [0, 1) wherever a 6 d cell holds 20 grains (a packing at rest has no tensile
+    contacts; mid-flow, damped contacts can pull and the ratio can exceed 1)."""
+    sys.path.insert(0, str(REPO / "bench"))
+    from deposit_rest import deposit_stress
+    from dem_collapse import FORMS, END_RE, settled
+    extra = {"mu": FRICTION, "e": 0.5}
+    run(aspect=2.0, width=0.05, d=0.002, np_=1, out=tmp_path / "cache", lmp=lmp, extra_vars=extra)  # cached column
+    cache = settled(2.0, 0.05, 0.002, 12345, {k: str(v) for k, v in extra.items()})
+    assert cache.cached()
+    common = dict(aspect=2.0, width=0.05, d=0.002, settled=str(cache.path), prep=0, seed=12345, **extra)
+
+    early = tmp_path / "early"
+    early.mkdir()
+    log = FORMS.run("lammps", dict(common, out=str(early), tmax=0.1), early / "log.lammps", exe=lmp).check(
+        "stopped at tmax", early / "final.dump")
+    end = re.search(END_RE, log, re.M)
+    assert 0.1 <= float(end.group(1)) < 0.1 + 0.051, end.group(0)     # the run's last chunk is 0.05 s
+    assert float(end.group(2)) > float(end.group(3)), "stopped while moving, above the rest threshold"
+    assert not (early / "final_stress.dump").exists()
+
+    rest = tmp_path / "rest"
+    rest.mkdir()
+    log = FORMS.run("lammps", dict(common, out=str(rest), stressout=1), rest / "log.lammps", exe=lmp).check(
+        "to rest", rest / "final_stress.dump")
+    end = re.search(END_RE, log, re.M)
+    assert float(end.group(2)) < float(end.group(3)), "at rest"
+    grains = read_dump(rest / "final_stress.dump")
+    assert len(grains["x"]) > 300
+    pressure = -0.5 * (grains["c_grainstress[1]"] + grains["c_grainstress[2]"])
+    assert np.mean(pressure > 0) > 0.9, "the deposit's grains are in compression"
+    ratios = deposit_stress(rest / "final_stress.dump", 6 * 0.002)
+    assert ratios.size >= 4
+    assert np.all((ratios >= 0) & (ratios < 1)), ratios
