@@ -90,6 +90,26 @@ def test_cache_keys_stay_those_of_the_existing_entries(tmp_path):
     assert entry.cached(with_info=True) and entry.info() == {"grains": 5} and entry.path.read_text() == "state"
 
 
+def test_cache_key_of_a_staged_deck_ignores_its_later_stages(tmp_path):
+    """A (deck, marker) source keys the state by the part before the marker's line: editing the
+    stages that run from the cached state keeps it; editing the preparation does not; a deck
+    without the marker is refused rather than keyed by all of it."""
+    deck = tmp_path / "deck.lmp"
+    params = dict(a=2.0)
+    marker = "label           later"
+
+    def key(text):
+        deck.write_text(text)
+        return Settled.entry("k", "l", params, ((deck, marker),), "s", tmp_path).path.parent.name
+
+    base = key("prep 1\nlabel           later\ncollapse 1\n")
+    assert key("prep 1\nlabel           later\ncollapse 2\n") == base
+    assert key("prep 2\nlabel           later\ncollapse 1\n") != base
+    assert base.endswith(hashlib.sha1(b"prep 1\n").hexdigest()[:10])
+    with pytest.raises(ValueError, match="no line holding"):
+        key("prep 1\ncollapse 1\n")
+
+
 def test_katsuragi_durian_fit_recovers_k_and_d1():
     mp, k, d1 = 0.005, 400.0, 0.01
     z = np.linspace(1e-4, 0.02, 400)

@@ -36,6 +36,8 @@ from hgtools.runner import Forms, workdir
 
 FORMS = Forms("column_collapse", lammps="dem_2d.lmp", liggghts=None, hybrid=None)   # the hybrid twin is in the deck
 DECK = FORMS.deck("lammps")
+# the deck's collapse stage runs from the cached column: only what precedes it makes the column
+COLLAPSE_STAGE = "label           collapse_stage"
 
 
 @dataclass(kw_only=True)
@@ -65,7 +67,7 @@ class DemResult(Deposit):
 
 def settled(aspect: float, width: float, d: float, seed: int, extra: dict) -> Settled:
     return Settled.entry("dem_column", f"a{aspect:g}_w{width:g}_d{d:g}_s{seed}",
-                         dict(a=aspect, w=width, d=d, seed=seed, **extra), (DECK,), "settled.restart")
+                         dict(a=aspect, w=width, d=d, seed=seed, **extra), ((DECK, COLLAPSE_STAGE),), "settled.restart")
 
 
 END_RE = r"^DEM collapse end: t = (\S+) s, grains \d+, KE/grain = (\S+) J \(rest threshold (\S+) J\)"
@@ -106,7 +108,7 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
         raise RuntimeError(f"no 'DEM collapse end' line in {out / 'log.lammps'}")
     # LAMMPS's loop times of the collapse stage (after the last "collapse_stage" label)
     # (a run from the cached column jumps straight there and may not echo the label)
-    steps, loop_time = logs.loops(log, after="label           collapse_stage")
+    steps, loop_time = logs.loops(log, after=COLLAPSE_STAGE)
     return DemResult(aspect=aspect, width=width, d=d, wall_time=done.wall, prepared=prep,
                      length=logs.number(r"^DEM domain length ([-+.\deE]+) m", log),
                      steps=steps, loop_time=loop_time,

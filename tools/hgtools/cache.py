@@ -5,7 +5,9 @@ cost), shared by all clones on a machine:
 
 with one keying rule: the params key is the SHA-1 of the parameters as sorted JSON, the sources key
 the SHA-1 of the files that make the state (the deck, and the driver when it writes the initial
-grains), 10 hex digits each. Next to the state file, `prep.json` may hold what the preparation
+grains), 10 hex digits each. A source may be a (file, marker) pair: only the part of the file before
+the first line holding the marker makes the state (a deck whose later stages run from the cached
+state), so editing those stages keeps the cache. Next to the state file, `prep.json` may hold what the preparation
 measured.
 """
 from __future__ import annotations
@@ -30,6 +32,19 @@ def digest(data: bytes) -> str:
     return hashlib.sha1(data).hexdigest()[:10]
 
 
+def source_bytes(source) -> bytes:
+    """The bytes of a source that make a cached state: a file, or a (file, marker) pair for the
+    part of the file before the first line holding the marker (a marker it lacks is an error)."""
+    if isinstance(source, tuple):
+        path, marker = source
+        text = Path(path).read_bytes()
+        at = text.find(marker.encode())
+        if at < 0:
+            raise ValueError(f"{path} has no line holding {marker!r}: the cache key cannot tell its stages apart")
+        return text[:text.rfind(b"\n", 0, at) + 1]
+    return Path(source).read_bytes()
+
+
 @dataclass(frozen=True)
 class Settled:
     """One entry: the state file and its preparation record."""
@@ -39,7 +54,7 @@ class Settled:
     def entry(cls, kind: str, label: str, params: dict, sources: tuple, file: str,
               override: str | Path | None = None) -> "Settled":
         key = digest(json.dumps(params, sort_keys=True).encode())
-        made = digest(b"".join(Path(p).read_bytes() for p in sources))
+        made = digest(b"".join(source_bytes(p) for p in sources))
         return cls(root(override) / kind / f"{label}_{key}_{made}" / file)
 
     @property
