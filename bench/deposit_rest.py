@@ -30,7 +30,6 @@ import json
 import math
 import re
 import sys
-import tomllib
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -41,6 +40,7 @@ sys.path.insert(0, str(REPO / "tools"))
 from dem_collapse import END_RE, FORMS, run as run_collapse, settled  # noqa: E402
 from hgtools import logs  # noqa: E402
 from hgtools.grains import read_dump  # noqa: E402
+from hgtools.materials import material_path, read_material  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run, read_grains  # noqa: E402
 
@@ -48,7 +48,8 @@ D = 0.002            # grain diameter, m (the deck's)
 ASPECT = 2
 SEED = 12345
 CELL_D = 6           # the fix's cell from these grains (hcell 0), in d
-MATERIAL = REPO / "input_decks" / "materials" / "disks_2d.toml"
+EVERY = 10           # the hybrid's exchange interval, steps (deck variable hevery)
+MATERIAL = "disks_2d"    # the deck's continuum (hmaterial)
 
 
 def stress_ratio_2d(sxx, syy, sxy):
@@ -77,14 +78,13 @@ def mass_mean(mass, v):
     return (mass[:, None] * v).sum(axis=0) / mass.sum()
 
 
-def window_frames(frames: Path, t_from: float) -> list[int]:
-    """Indices of the hybrid's frames at or after t_from."""
-    return [f.index for f in load_run(frames).frames if f.time >= t_from]
+def window_frames(run, t_from: float) -> list[int]:
+    """Indices of the hybrid's frames (an mpm_results Run) at or after t_from."""
+    return [f.index for f in run.frames if f.time >= t_from]
 
 
-def points_state(frames: Path, indices: list[int], mu_s: float) -> list[dict]:
+def points_state(run, indices: list[int], mu_s: float) -> list[dict]:
     """Per frame: the points' share on the yield cone, median tau/p, mass-weighted mean velocity."""
-    run = load_run(frames)
     rows = []
     for i in indices:
         f = run.frame(i, ["position", "velocity", "mass", "stress"])
@@ -104,12 +104,12 @@ def points_drift(first: dict, last: dict) -> list[float]:
     return ((x1 - x0[near]).mean(axis=0) / max(last["time"] - first["time"], 1e-12)).tolist()
 
 
-def grains_state(frames: Path, indices: list[int]) -> list[dict]:
+def grains_state(run, indices: list[int]) -> list[dict]:
     """Per frame: mass-weighted mean velocity and median speed of the hybrid (weight < 1) and the
     discrete grains."""
     rows = []
     for i in indices:
-        g = read_grains(frames, i)
+        g = read_grains(run.path, i)
         row = dict(time=float(g["time"]))
         for name, sel in (("hybrid", g["weight"] < 1.0), ("discrete", g["weight"] >= 1.0)):
             v = g["velocity"][sel][:, :2]
@@ -129,7 +129,7 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "deposit_rest.md")
     a = ap.parse_args()
     width = a.width_d * D
-    mu_s = tomllib.loads(MATERIAL.read_text())["continuum"]["mu_s"]
+    mu_s = read_material(MATERIAL)["continuum"]["mu_s"]
     cache = settled(ASPECT, width, D, SEED, {})
     if not cache.cached():    # the settled column, once (cached for every later run)
         run_collapse(aspect=ASPECT, width=width, d=D, np_=a.np_, out=a.work / "prepare", seed=SEED, timeout=6 * 3600)
@@ -155,20 +155,21 @@ def main() -> int:
 
     hyb_out = a.work / "hybrid"
     hyb_out.mkdir(parents=True, exist_ok=True)
-    every = 10    # the deck's exchange interval (hevery)
-    frames_every = max(1, math.ceil(a.frame_every / (dt * every)))
+    frames_every = max(1, math.ceil(a.frame_every / (dt * EVERY)))    # houtev counts exchanges
     hyb = FORMS.run("hybrid", dict(common, out=str(hyb_out)), hyb_out / "log.lammps",
-                    dict(hybrid=2, hcell=0, tmax=t_rest + a.after, houtev=frames_every), np_=a.np_,
+                    dict(hybrid=2, hcell=0, hevery=EVERY, hmaterial=MATERIAL, tmax=t_rest + a.after,
+                         houtev=frames_every), np_=a.np_,
                     timeout=6 * 3600)
     hlog = hyb.check("in the hybrid collapse", hyb_out / "final.dump")
     kerest = float(re.search(END_RE, hlog, re.M).group(3))
     late = [r["v_kepg"] / kerest for r in logs.thermo_rows(hlog, require="v_kepg") if r["Time"] >= t_rest]
-    indices = window_frames(hyb_out / "frames", t_rest)
+    run = load_run(hyb_out / "frames")
+    indices = window_frames(run, t_rest)
     if len(indices) < 2:
         raise SystemExit(f"deposit_rest: the hybrid wrote {len(indices)} frame(s) after t = {t_rest:.3f} s; "
                          f"see {hyb_out / 'log.lammps'}")
-    frames = points_state(hyb_out / "frames", indices, mu_s)
-    grains = grains_state(hyb_out / "frames", indices)
+    frames = points_state(run, indices, mu_s)
+    grains = grains_state(run, indices)
     hyb_row = dict(
         frames=len(frames), window_s=[frames[0]["time"], frames[-1]["time"]],
         ke_over_rest_mean=float(np.mean(late)) if late else None, ke_over_rest_end=late[-1] if late else None,
@@ -196,7 +197,7 @@ def main() -> int:
         f"`{command}`, {stamp}: the 2D column collapse, a = {ASPECT}, L0 = {a.width_d} d, pure LAMMPS DEM to rest "
         f"(t = {t_rest:.3f} s) and the adaptive hybrid (fix defaults, `hcell 0`) from the same column, run "
         f"{a.after} s longer; {a.np_} LAMMPS ranks. The continuum's friction mu_s = {mu_s:.4f} "
-        f"(`{MATERIAL.relative_to(REPO)}`).", "",
+        f"(`{material_path(MATERIAL).relative_to(REPO)}`).", "",
         "| | DEM at rest | hybrid, after the DEM's rest time |", "| --- | --- | --- |",
         f"| stress ratio tau/p, median | {dem_row['ratio_median']:.3f} (cells of {CELL_D} d) | "
         f"{hyb_row['points_ratio_median']:.3f} (points) |",

@@ -41,11 +41,11 @@ from pathlib import Path
 import numpy as np
 
 from hgtools.grains import write_spheres
+from hgtools.materials import material_path, read_material
 from hgtools.runner import run_deck
 
 REPO = Path(__file__).resolve().parent.parent
 DECK = REPO / "input_decks" / "calibration" / "simple_shear.lmp"
-MATERIALS = REPO / "input_decks" / "materials"
 
 # The reference grain of the runs (SI): results are made dimensionless with these.
 D_REF, RHO_REF, P0_REF = 1.0e-3, 2500.0, 100.0
@@ -293,9 +293,8 @@ def calibrate(law: ContactLaw, out: Path, grains: int, inertial: tuple, strain: 
 def describe_material(name: str) -> str:
     """One sentence naming a committed material (input_decks/materials/NAME.toml) and the constants
     it gives the continuum, for reports that say which calibration their runs used."""
-    import tomllib
-    path = MATERIALS / f"{name}.toml"
-    material = tomllib.loads(path.read_text())
+    path = material_path(name)
+    material = read_material(name)
     c = material["continuum"]
     unit = "kn" if material["material"]["dimension"] == 2 else "kn/d"
     return (f"the material calibrated from the grains, `{path.relative_to(REPO)}` (tools/calibrate.py: "

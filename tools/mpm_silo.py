@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -31,9 +30,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from hgtools import runner  # noqa: E402
 from hgtools.discharge import fit_rate  # noqa: E402
 from hgtools.logs import records  # noqa: E402
-from hgtools.runner import REPO  # noqa: E402
+from hgtools.materials import read_material  # noqa: E402
 
-MATERIALS = REPO / "input_decks" / "materials"
 G = 9.81
 
 
@@ -59,7 +57,7 @@ class MpmSilo:
         return self.cell or self.orifice / 5
 
     def continuum(self) -> dict:
-        return tomllib.loads((MATERIALS / f"{self.material}.toml").read_text())["continuum"]
+        return read_material(self.material)["continuum"]
 
     def bulk_density(self) -> float:
         return self.continuum()["packing_fraction"] * self.rho
