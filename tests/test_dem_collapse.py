@@ -95,6 +95,12 @@ def test_collapse_stops_at_tmax_and_dumps_the_contact_stress(tmp_path, lmp):
     assert float(end.group(2)) > float(end.group(3)), "stopped while moving, above the rest threshold"
     assert not (early / "final_stress.dump").exists()
 
+    typo = tmp_path / "typo"     # a bad switch is refused before the collapse runs, naming itself
+    typo.mkdir()
+    FORMS.run("lammps", dict(common, out=str(typo), stressout=2), typo / "log.lammps", exe=lmp)
+    assert "ERROR: stressout must be 0 or 1, not 2" in typo.joinpath("log.lammps").read_text()
+    assert not (typo / "final.dump").exists()
+
     rest = tmp_path / "rest"
     rest.mkdir()
     log = FORMS.run("lammps", dict(common, out=str(rest), stressout=1), rest / "log.lammps", exe=lmp).check(
