@@ -136,11 +136,12 @@ def timed(run, **kwargs):
     return run(**kwargs), children_cpu() - before
 
 
-def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim: int = 2) -> dict:
-    """The cost model's terms and prediction (module docstring), and the hybrid's ledger."""
+def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim: int = 2, every: int = EVERY) -> dict:
+    """The cost model's terms and prediction (module docstring), and the hybrid's ledger (`every`:
+    its exchange interval, steps)."""
     dem_rows = thermo_rows(dem_log, require="v_ng")
     c_g = dem_loop / steps_weighted(dem_rows, lambda r: r["v_ng"])
-    led = hybrid_ledger(hyb_log, every=EVERY)
+    led = hybrid_ledger(hyb_log, every=every)
     c_p, c_x = mpm_point_cost(threads, dim), exchange_cost()
     model = dict(grains=c_g * led["grain_steps"], points=c_p * led["point_substeps"],
                  exchange=c_x * led["coupled_exchanges"])
@@ -161,11 +162,13 @@ def speeds(dem, hyb, dem_cpu: float, hyb_cpu: float) -> dict:
 # side walls and the floor, the region over the orifice discrete)
 VARIANTS = {"depth_d": ("hdepth", "depth", "depth", True),
             "surface_depth_d": ("hsurface", "surface", "surface depth", True),
-            "touch": ("htouch", "touch", "touch", False)}
+            "touch": ("htouch", "touch", "touch", False),
+            "every": ("hevery", "every", "exchange every", False)}
 
 
 def is_variant(r: dict) -> bool:
-    """A row of the hybrid at other zones than the fix's (the JSON's `depth_front`)."""
+    """A row of the hybrid at other zones than the fix's, or another exchange interval (the JSON's
+    `depth_front`)."""
     return any(r.get(key) is not None for key in VARIANTS)
 
 
@@ -252,7 +255,7 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
                    **({} if noise is None else dict(noise_floor=noise, rate_liggghts=lig.rate)),
                    **speeds(dem, hyb, dem_cpu, hyb_cpu),
                    **cost_model(dem.loop_time, work / f"dem_{tag}{n}" / silo.log, work / name / silo.log, threads,
-                                silo.dim))
+                                silo.dim, int(hvars.get("hevery", EVERY))))
         print(f"{silo.scene} W = {n} d{'' if variant is None else ', ' + variant_label(row)}: {dem.grains} grains, "
               f"speedup {row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), rate {row['error']:+.1%}"
               f"{'' if noise is None else f' (LIGGGHTS {noise:+.1%})'}, continuum {row['continuum_share']:.0%}",
@@ -412,6 +415,9 @@ def main() -> int:
     ap.add_argument("--surface-depths", default="",
                     help="silo: also run the hybrid with these depths below the free surface only (fix keyword "
                          "surface_depth; the floor, walls and orifice keep the fix's depth), grain diameters")
+    ap.add_argument("--every", default="",
+                    help="silo: also run the hybrid exchanging every this many DEM steps (e.g. '20,40'; the deck's "
+                         "default is 10, its oracle every 10 exchanges), against the same DEM run")
     ap.add_argument("--touch-floor", action="store_true",
                     help="silo: also run the hybrid with the floor touched (htouch 2: the side walls and the floor, "
                          "the region over the orifice discrete), alone and with each --depths/--surface-depths")
@@ -438,7 +444,8 @@ def main() -> int:
         os.sched_setaffinity(0, set(range(a.np_)))
         os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
     sizes = [int(n) for n in a.sizes.split(",") if n]
-    variants = tuple(((key, float(x)),) for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths))
+    variants = tuple(((key, float(x)),) for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths),
+                                                            ("every", a.every))
                      for x in values.split(",") if x)
     if a.touch_floor:    # the floor touched, alone and with each of the other variants
         variants = variants + ((("touch", 2),),) + tuple((("touch", 2), *v) for v in variants)
@@ -446,6 +453,7 @@ def main() -> int:
                f"'{a.silo3d_sizes}'{' --liggghts' if a.liggghts else ''} --collapse-sizes "
                f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
                f"{f' --surface-depths {a.surface_depths}' if a.surface_depths else ''}"
+               f"{f' --every {a.every}' if a.every else ''}"
                f"{' --touch-floor' if a.touch_floor else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     saved_rows = load(path)[1] if a.keep and path.exists() else []
     saved_date = json.loads(path.read_text())["date"] if saved_rows else stamp
