@@ -353,6 +353,44 @@ def timing_blocks(log_text: str) -> list[dict]:
     return blocks
 
 
+def test_every_auto_exchanges_at_the_continuums_stable_substep(tmp_path, hybrid_programs):
+    """`every auto`: the fix sets the exchange interval to the continuum's stable substep in whole
+    DEM steps and rounds the oracle's 12 steps up to a multiple of it. This deck's disks (LAMMPS
+    masses of 2500 kg/m^3 spheres: 4/3 r rho = 3.333 kg/m^2 per unit depth), a continuum given
+    youngs 1.3e4 and poisson 0.3 at the nominal packing 0.6, 0.01 m cells and cfl 0.5: a substep
+    of 5.35 DEM steps of 1e-5 s, so every 5 and the oracle every 15; the MPM process then takes one
+    or two substeps per exchange (its points made from grains are denser than nominal, its hybrid
+    points lighter). With the fix's default constants (youngs 1e7) the substep is under one DEM
+    step, and `every auto` exchanges every step."""
+    def edit(text):
+        text = replace_fix_line(with_fixed_faces(text), "cell 0.01 every auto youngs 1.3e4 adaptive 12 depth 0.012 band 0.008 touch ylo")
+        text = text.replace("thermo          50", "thermo          10")
+        out = text.replace("thermo_style    custom step atoms ke f_couple", "thermo_style    custom step atoms ke f_couple[1] f_couple[6]")
+        assert out != text
+        return out
+    log = tmp_path / "log.lammps"
+    deck = deck_copy(tmp_path, edit)
+    proc, _ = launch("-np", "2", str(deck), "-var", "nsteps", "40", "-log", str(log), timeout=120)
+    text = output(proc)
+    assert proc.returncode == 0, text
+    lammps_log = log.read_text()
+    modulus = 1.3e4 * 0.7 / (1.3 * 0.4)                                  # lambda + 2G
+    speed = math.sqrt(modulus / (0.6 * 4 / 3 * 0.001 * 2500))
+    every = int(0.5 * 0.01 / speed / 1e-5)
+    assert every == 5
+    assert (f"fix hybrid/mpm: exchange every {every} step(s) (every auto: the continuum's stable substep cfl dx / c = "
+            f"0.5 x 0.01 m / {speed:.4g} m/s") in lammps_log, lammps_log
+    assert "zone oracle every 15 steps (keyword 'adaptive' 12 rounded up to a multiple of it)" in lammps_log, lammps_log
+    assert f"exchange every {every} step(s)\n" in lammps_log, lammps_log           # the handshake's line
+    blocks = timing_blocks(lammps_log)
+    assert [b["exchanges"] for b in blocks] == [40 // every], lammps_log
+    rows = [ln.split() for ln in lammps_log.splitlines() if re.match(r"^\s+\d+\s+\d+\s+\S+\s+\d+\s+\d+\s*$", ln)]
+    substeps = {int(r[0]): int(r[4]) for r in rows if int(r[0]) > 0}
+    assert set(substeps) == {10, 20, 30, 40}, lammps_log
+    assert all(1 <= n <= 2 for n in substeps.values()), substeps
+    assert substeps[40] and int(rows[-1][3]) == 40 // every, rows
+
+
 def test_timing_breakdown_at_the_end_of_every_run_and_in_the_thermo_vector(tmp_path, hybrid_programs):
     """Two coupled runs with adaptive zones on 2 ranks: each ends with the fix's timing breakdown
     in LAMMPS's columns, whose sections add up to the coupling's total, a share of the run's wall

@@ -223,6 +223,30 @@ std::string grid_of_run(FixOptions &o, int dimension, std::int64_t grains, const
   return line;
 }
 
+std::string resolve_exchange_interval(FixOptions &o, double dem_dt) {
+  const ContinuumSettings &c = o.continuum;
+  const double E = c.youngs_modulus, nu = c.poisson_ratio;
+  // P-wave modulus lambda + 2G (plane strain and 3D alike) over the density the MPM process
+  // gives its material (coupled_continuum.cpp); points made from grains are denser and slower,
+  // so this bounds their step from below
+  const double wave_speed = std::sqrt(E * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)) /
+                                      (c.critical_packing * c.grain_density));
+  const double substep = c.cfl * o.cell / wave_speed;
+  const double in_steps = substep / dem_dt;
+  o.every = std::max(1, static_cast<int>(std::floor(in_steps * (1.0 + 1e-12))));
+  std::string line = "exchange every " + std::to_string(o.every) + " step(s) (every auto: the continuum's stable "
+                     "substep cfl dx / c = " + shortest(c.cfl) + " x " + general(o.cell, 4) + " m / " +
+                     general(wave_speed, 4) + " m/s = " + general(substep, 4) + " s is " + general(in_steps, 3) +
+                     " DEM steps of " + general(dem_dt, 4) + " s)";
+  if (o.adaptive() && o.adapt_every % o.every != 0) {
+    const int given = o.adapt_every;
+    o.adapt_every = (given / o.every + 1) * o.every;
+    line += "; zone oracle every " + std::to_string(o.adapt_every) + " steps (keyword 'adaptive' " +
+            std::to_string(given) + " rounded up to a multiple of it)";
+  }
+  return line;
+}
+
 RezoneLog rezone_log_option(const std::string &value) {
   const auto level = parse_rezone_log(value);
   if (!level)
@@ -361,7 +385,10 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
                                         "must exceed pi/2, where velocity Verlet goes unstable, not ");
     else if (key == "rezone_log") o.rezone_log = rezone_log_option(val);
     else if (key == "mpm_state") o.mpm_state_path = val;
-    else if (key == "every") o.every = integer(key, val);
+    else if (key == "every") {
+      o.every_auto = val == "auto";
+      o.every = o.every_auto ? 1 : integer(key, val);
+    }
     else if (key == "timeout") o.reply_timeout = positive(key, val, "seconds");
     else if (key == "idle")
       o.idle_timeout = within(key, val, [](double v) { return !(v < 0.0); },
@@ -385,7 +412,7 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
     illegal("keyword 'touch' needs adaptive zones (keyword 'adaptive'): with fixed zones, the continuum regions "
             "decide where the continuum is");
   if (o.inertia < 0.0) o.inertia = dimension == 2 ? 0.5 : 0.4;
-  if (o.adaptive() && o.adapt_every % o.every != 0)
+  if (o.adaptive() && !o.every_auto && o.adapt_every % o.every != 0)
     illegal("keyword 'adaptive' (" + std::to_string(o.adapt_every) + " steps) must be a multiple of 'every' (" +
             std::to_string(o.every) + "): zones change right after an exchange");
   check_oracle_options(o, dimension);

@@ -227,6 +227,7 @@ void FixHybridMPMLiggghts::connect()
     error->all(FLERR, kept("Illegal fix hybrid/mpm command: " + std::string(e.what())));
   }
   if (!problem.empty()) fail(problem);
+  if (opt->every_auto) say("fix hybrid/mpm: " + coupler::resolve_exchange_interval(*opt, update->dt));
   dem_gravity(opt->continuum.gravity);
   // the agreement's relaxation time: keyword relax, else from the stiffest contact's duration
   std::string why;

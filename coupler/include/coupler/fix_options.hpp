@@ -32,6 +32,7 @@ struct FixOptions {
   double idle_timeout = 600.0;    ///< s the MPM process waits for the next message (0 = forever)
   int model = kModelDruckerPrager;
   int every = 1;                  ///< exchange every this many steps
+  bool every_auto = false;        ///< keyword `every auto`: `every` from the continuum's stable step at the first run
   int hybrid_width = 2;           ///< cells of hybrid zone inside the continuum regions' border
   int adapt_every = 0;            ///< the zone oracle every this many steps (0 = fixed zones)
   int grain_type = 0;             ///< atom type of grains made from points (0 = the group's smallest)
@@ -142,6 +143,13 @@ std::string resolve_grid(FixOptions &options, int dimension, double grain_diamet
 /// OptionError for a bad option (an "Illegal fix" error) and sets `problem` for too small a cell.
 std::string grid_of_run(FixOptions &options, int dimension, std::int64_t grains, const double box_lo[3],
                         const double box_hi[3], std::string &problem);
+
+/// Keyword `every auto` at the first run, once the cell and the continuum's constants are known:
+/// the exchange interval is the continuum's stable substep cfl dx / c (c its P-wave speed at its
+/// nominal density) in whole DEM steps of `dem_dt`, at least 1, since the MPM process never steps
+/// past an exchange; the zone oracle's interval is rounded up to a multiple of it. Returns the
+/// line that says what was chosen.
+std::string resolve_exchange_interval(FixOptions &options, double dem_dt);
 
 /// rezone_log's value (OptionError for another).
 RezoneLog rezone_log_option(const std::string &value);
