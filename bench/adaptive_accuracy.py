@@ -48,9 +48,9 @@ EXCHANGE_DEFAULT, ORACLE_DEFAULT = 10, 100      # the decks' defaults
 
 
 def numerics(exchanges, oracles) -> list[tuple[int, int]]:
-    """Each exchange interval at the default oracle interval, each oracle interval at the
-    default exchange interval."""
-    pairs = [(e, ORACLE_DEFAULT) for e in exchanges] + [(EXCHANGE_DEFAULT, o) for o in oracles]
+    """Each exchange interval at the default oracle interval (the nearest multiple of it above, as
+    the oracle runs right after an exchange), each oracle interval at the default exchange interval."""
+    pairs = [(e, -(-ORACLE_DEFAULT // e) * e) for e in exchanges] + [(EXCHANGE_DEFAULT, o) for o in oracles]
     return list(dict.fromkeys(pairs))
 
 

@@ -55,6 +55,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import sys
 from datetime import datetime, timezone
@@ -172,9 +173,24 @@ def is_variant(r: dict) -> bool:
     return any(r.get(key) is not None for key in VARIANTS)
 
 
+def variant_value(value) -> str:
+    return value if isinstance(value, str) else f"{value:g}"    # every auto
+
+
 def variant_label(r: dict, unit: str = " d") -> str:
-    return ", ".join(f"{VARIANTS[key][2]} {r[key]:g}{unit if VARIANTS[key][3] else ''}"
+    return ", ".join(f"{VARIANTS[key][2]} {variant_value(r[key])}{unit if VARIANTS[key][3] else ''}"
                      for key in VARIANTS if r.get(key) is not None)
+
+
+def exchange_interval(hvars: dict, log: Path) -> int:
+    """The hybrid's exchange interval: the deck variable's, or with every auto the one the fix chose."""
+    every = str(hvars.get("hevery", EVERY))
+    if every != "auto":
+        return int(every)
+    m = re.search(r"^fix hybrid/mpm: exchange every (\d+) step\(s\) \(every auto", log.read_text(), re.M)
+    if not m:
+        raise RuntimeError(f"no 'exchange every N step(s) (every auto' line in {log}")
+    return int(m.group(1))
 
 
 class Silo:
@@ -243,9 +259,9 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
         hvars, zones = dict(silo.hybrid_vars), {key: None for key in VARIANTS}
         name = f"hybrid_{tag}{n}"
         for key, value in variant or ():
-            hvars[VARIANTS[key][0]] = f"{value * D:.9g}" if VARIANTS[key][3] else f"{value:g}"
+            hvars[VARIANTS[key][0]] = f"{value * D:.9g}" if VARIANTS[key][3] else variant_value(value)
             zones[key] = value
-            name += f"_{VARIANTS[key][1]}{value:g}"
+            name += f"_{VARIANTS[key][1]}{variant_value(value)}"
         hyb, hyb_cpu = timed(silo.run, n=n, out=work / name, hybrid_vars=hvars)
         row = dict(scene=silo.scene, grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=silo.orifice_d,
                    **zones, error=hyb.rate / dem.rate - 1, runout_error=None, cores=silo.common["np_"],
@@ -255,7 +271,7 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
                    **({} if noise is None else dict(noise_floor=noise, rate_liggghts=lig.rate)),
                    **speeds(dem, hyb, dem_cpu, hyb_cpu),
                    **cost_model(dem.loop_time, work / f"dem_{tag}{n}" / silo.log, work / name / silo.log, threads,
-                                silo.dim, int(hvars.get("hevery", EVERY))))
+                                silo.dim, exchange_interval(hvars, work / name / silo.log)))
         print(f"{silo.scene} W = {n} d{'' if variant is None else ', ' + variant_label(row)}: {dem.grains} grains, "
               f"speedup {row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), rate {row['error']:+.1%}"
               f"{'' if noise is None else f' (LIGGGHTS {noise:+.1%})'}, continuum {row['continuum_share']:.0%}",
@@ -416,8 +432,9 @@ def main() -> int:
                     help="silo: also run the hybrid with these depths below the free surface only (fix keyword "
                          "surface_depth; the floor, walls and orifice keep the fix's depth), grain diameters")
     ap.add_argument("--every", default="",
-                    help="silo: also run the hybrid exchanging every this many DEM steps (e.g. '20,40'; the deck's "
-                         "default is 10, its oracle every 10 exchanges), against the same DEM run")
+                    help="silo: also run the hybrid exchanging every this many DEM steps (e.g. '20,40,auto'; the "
+                         "deck's default is 10, its oracle every 10 exchanges; auto: the fix's every auto, the oracle "
+                         "every 100 steps rounded up to a multiple), against the same DEM run")
     ap.add_argument("--touch-floor", action="store_true",
                     help="silo: also run the hybrid with the floor touched (htouch 2: the side walls and the floor, "
                          "the region over the orifice discrete), alone and with each --depths/--surface-depths")
@@ -446,7 +463,9 @@ def main() -> int:
     sizes = [int(n) for n in a.sizes.split(",") if n]
     variants = tuple(((key, float(x)),) for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths),
                                                             ("every", a.every))
-                     for x in values.split(",") if x)
+                     for x in values.split(",") if x and not (key == "every" and x == "auto"))
+    if "auto" in a.every.split(","):    # the fix's every auto
+        variants += ((("every", "auto"),),)
     if a.touch_floor:    # the floor touched, alone and with each of the other variants
         variants = variants + ((("touch", 2),),) + tuple((("touch", 2), *v) for v in variants)
     command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --silo3d-sizes "
