@@ -309,7 +309,7 @@ def table(rows: list[dict]) -> list[str]:
            "coupling s (MPM wait, rezones) |",
            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     order = lambda r: (r["scene"], -r["cores"], r.get("pinned", False), r["width_d"],  # noqa: E731
-                       *((r.get(k) is not None, r.get(k) or 0) for k in VARIANTS))
+                       *((r.get(k) is not None, isinstance(r.get(k), str), r.get(k) or 0) for k in VARIANTS))
     for r in sorted(rows, key=order):
         error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
         if "steps_ratio" in r:    # a collapse: the hybrid's steps to rest over the DEM's (its cap if not at rest)
