@@ -461,11 +461,9 @@ def main() -> int:
         os.sched_setaffinity(0, set(range(a.np_)))
         os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
     sizes = [int(n) for n in a.sizes.split(",") if n]
-    variants = tuple(((key, float(x)),) for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths),
-                                                            ("every", a.every))
-                     for x in values.split(",") if x and not (key == "every" and x == "auto"))
-    if "auto" in a.every.split(","):    # the fix's every auto
-        variants += ((("every", "auto"),),)
+    variants = tuple(((key, x if key == "every" and x == "auto" else float(x)),)    # the fix's every auto
+                     for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths), ("every", a.every))
+                     for x in values.split(",") if x)
     if a.touch_floor:    # the floor touched, alone and with each of the other variants
         variants = variants + ((("touch", 2),),) + tuple((("touch", 2), *v) for v in variants)
     command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --silo3d-sizes "

@@ -210,10 +210,10 @@ void FixHybridMPM::connect()
     illegal(e.what());
   }
   if (!problem.empty()) error->all(FLERR, "Fix hybrid/mpm: " + problem);
-  if (opt->every_auto && comm->me == 0)
-    utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {}\n", coupler::resolve_exchange_interval(*opt, update->dt)));
-  else if (opt->every_auto)
-    coupler::resolve_exchange_interval(*opt, update->dt);
+  if (opt->every_auto) {    // every rank resolves it, rank 0 says what it chose
+    const std::string interval = coupler::resolve_exchange_interval(*opt, update->dt);
+    if (comm->me == 0) utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {}\n", interval));
+  }
   // gravity of the grains acts on the continuum too (and sets the energy ledger's potential
   // energy); read once here, checked at every later run's setup
   dem_gravity(opt->continuum.gravity);

@@ -388,7 +388,7 @@ def test_every_auto_exchanges_at_the_continuums_stable_substep(tmp_path, hybrid_
     substeps = {int(r[0]): int(r[4]) for r in rows if int(r[0]) > 0}
     assert set(substeps) == {10, 20, 30, 40}, lammps_log
     assert all(1 <= n <= 2 for n in substeps.values()), substeps
-    assert substeps[40] and int(rows[-1][3]) == 40 // every, rows
+    assert int(rows[-1][3]) == 40 // every, rows                        # completed exchanges
 
 
 def test_timing_breakdown_at_the_end_of_every_run_and_in_the_thermo_vector(tmp_path, hybrid_programs):

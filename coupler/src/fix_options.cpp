@@ -226,11 +226,10 @@ std::string grid_of_run(FixOptions &o, int dimension, std::int64_t grains, const
 std::string resolve_exchange_interval(FixOptions &o, double dem_dt) {
   const ContinuumSettings &c = o.continuum;
   const double E = c.youngs_modulus, nu = c.poisson_ratio;
-  // P-wave modulus lambda + 2G (plane strain and 3D alike) over the density the MPM process
-  // gives its material (coupled_continuum.cpp); points made from grains are denser and slower,
-  // so this bounds their step from below
-  const double wave_speed = std::sqrt(E * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)) /
-                                      (c.critical_packing * c.grain_density));
+  // P-wave modulus lambda + 2G (plane strain and 3D alike) over the MPM's nominal density;
+  // points made from grains are denser and slower, so this bounds their step from below
+  const double wave_speed =
+      std::sqrt(E * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)) / c.nominal_density());
   const double substep = c.cfl * o.cell / wave_speed;
   const double in_steps = substep / dem_dt;
   o.every = std::max(1, static_cast<int>(std::floor(in_steps * (1.0 + 1e-12))));

@@ -54,7 +54,7 @@ Scene coupled_scene(const coupler::Hello& hello) {
   m.name = "grains";
   // The points' own density (grain mass over cell volume) sets their wave speed; this
   // nominal bulk density only has to be valid.
-  m.density = c.critical_packing * c.grain_density;
+  m.density = c.nominal_density();
   if (hello.model == coupler::kModelMuI) {
     m.model = ModelKind::MuI;
     m.mu_i.youngs_modulus = c.youngs_modulus;

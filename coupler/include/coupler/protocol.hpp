@@ -116,6 +116,9 @@ struct ContinuumSettings {
   std::int32_t points_per_axis = 2;   ///< material points per cell and axis
   std::int32_t output_every = 0;      ///< exchanges between output frames, 0 = none
   char output_path[kTextSize] = {};   ///< HDF5 file the MPM process writes frames to
+  /// The bulk density the MPM process gives its material (its points carry their own, grain
+  /// mass over their volume): the loosest packing that still carries stress.
+  double nominal_density() const { return critical_packing * grain_density; }
 };
 
 /// DEM -> MPM: the first message. Units are SI ("si" in LAMMPS).
