@@ -63,7 +63,10 @@ const TableDesc kTables[] = {
    "material must start, and stay, inside the domain."},
   {"time", "[time]",
    "Time stepping. The step is explicit: dt = cfl * cell_size / (c + |v|max), "
-   "c = sqrt((lambda + 2G) / density) the elastic wave speed of the stiffest material."},
+   "c = sqrt((lambda + 2G) / density) the elastic wave speed of the stiffest material. "
+   "A step shorter than that at cfl 0.5 (a lower cfl, or a fixed dt) keeps a share "
+   "1 - dt/dt(0.5) of each point's velocity beyond the grid's field, so that the "
+   "transfers dissipate as much per unit time as at cfl 0.5, not more (docs/design.md 4.2)."},
   {"output", "[output]",
    "Snapshots go to <directory>/points.h5 (HDF5) with <directory>/points.xdmf "
    "for ParaView/VisIt. Per snapshot: position, velocity, mass, volume, stress, "

@@ -279,9 +279,16 @@ void Solver<D>::p2g(double dt) {
   // the team obtained and only the grids of that team are summed.
   int team = 1;
 
+  transfer_memory_ = transfer_memory(dt, transfer_reference_dt());
+  const bool memory = transfer_memory_ > 0;
+  if (memory && grid_.transfer_velocity.empty()) grid_.transfer_velocity.assign(grid_.num_nodes(), Vec<D>::Zero());
+
   // Clear what the last step touched.
   std::fill(grid_.mass.begin() + active_lo_, grid_.mass.begin() + active_hi_, 0.0);
   std::fill(grid_.momentum.begin() + active_lo_, grid_.momentum.begin() + active_hi_, Vec<D>::Zero());
+  if (!grid_.transfer_velocity.empty())
+    std::fill(grid_.transfer_velocity.begin() + active_lo_, grid_.transfer_velocity.begin() + active_hi_,
+              Vec<D>::Zero());
 
 #pragma omp parallel num_threads(n_threads)
   {
@@ -294,7 +301,10 @@ void Solver<D>::p2g(double dt) {
     if (t > 0) {
       std::fill(mass + tg.lo, mass + tg.hi, 0.0);
       std::fill(momentum + tg.lo, momentum + tg.hi, Vec<D>::Zero());
+      if (memory && tg.transfer.empty()) tg.transfer.assign(grid_.num_nodes(), Vec<D>::Zero());
+      if (!tg.transfer.empty()) std::fill(tg.transfer.begin() + tg.lo, tg.transfer.begin() + tg.hi, Vec<D>::Zero());
     }
+    Vec<D>* transfer = !memory ? nullptr : t == 0 ? grid_.transfer_velocity.data() : tg.transfer.data();
     const std::size_t begin = n_points * t / n, end = n_points * (t + 1) / n;
     std::size_t lo = grid_.num_nodes(), hi = 0;
     for (std::size_t p = begin; p < end; ++p) {
@@ -307,11 +317,18 @@ void Solver<D>::p2g(double dt) {
       lo = std::min(lo, base);
       hi = std::max(hi, base + span + 1);
       const Mat<D> affine_dx = affine * dx;
+      const Mat<D> carried_dx = (m * dx) * points_.C[p];
+      const Vec<D> own = m * points_.v[p];
       coupler::for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
         mass[k] += w * m;
         Vec<D> mom = mv;
         mom.noalias() += affine_dx * offset;
         momentum[k] += w * mom;
+        if (memory) {  // the same without the forces
+          Vec<D> carried = own;
+          carried.noalias() += carried_dx * offset;
+          transfer[k] += w * carried;
+        }
       });
     }
     tg.lo = lo;
@@ -334,6 +351,7 @@ void Solver<D>::p2g(double dt) {
         if (k >= tg.lo && k < tg.hi) {
           grid_.mass[k] += tg.mass[k];
           grid_.momentum[k] += tg.momentum[k];
+          if (memory) grid_.transfer_velocity[k] += tg.transfer[k];
         }
       }
   }
@@ -387,6 +405,7 @@ template <int D>
 void Solver<D>::grid_update(double dt) {
   const std::size_t lo = active_lo_, hi = active_hi_;
   const double keep = std::max(0.0, 1.0 - scene_.time.damping * dt);
+  const bool memory = transfer_memory_ > 0;
 #pragma omp parallel for schedule(static) num_threads(active_threads())
   for (std::size_t k = lo; k < hi; ++k) {
     const double m = grid_.mass[k];
@@ -394,6 +413,7 @@ void Solver<D>::grid_update(double dt) {
       grid_.momentum[k].setZero();
       continue;
     }
+    if (memory) grid_.transfer_velocity[k] /= m;
     Vec<D> v = (grid_.momentum[k] / m + dt * gravity_) * keep;
     apply_boundaries(k, v);
     grid_.momentum[k] = v;  // from here on the array holds node velocities
@@ -408,22 +428,26 @@ void Solver<D>::g2p(double dt) {
   // Points must keep their stencil on the grid: allow 1.5 cells past the domain.
   const Vec<D> lo = grid_.domain_lower.array() - 1.5 * dx, hi = grid_.domain_upper.array() + 1.5 * dx;
   const std::size_t none = std::numeric_limits<std::size_t>::max();
+  const bool memory = transfer_memory_ > 0;
   std::size_t first_bad = none;
   double max_speed_sq = 0, max_wave4 = 0;
 #pragma omp parallel for schedule(static) num_threads(active_threads()) reduction(max : max_speed_sq, max_wave4) \
     reduction(min : first_bad)
   for (std::size_t p = 0; p < n_points; ++p) {
     const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
-    Vec<D> v = Vec<D>::Zero();
+    Vec<D> v = Vec<D>::Zero(), transferred = Vec<D>::Zero();
     Mat<D> B = Mat<D>::Zero();
     coupler::for_each_stencil_node<D>(st, grid_, [&](std::size_t k, double w, const Vec<D>& offset) {
       const Vec<D> wv = w * grid_.momentum[k];
       v += wv;
       B.noalias() += wv * offset.transpose();  // noalias: no temporary for the outer product
+      if (memory) transferred += w * grid_.transfer_velocity[k];
     });
     B *= dx;
     const Mat<D> C = inv_inertia * B;
-    points_.v[p] = v;
+    // APIC takes the grid's field; a step shorter than the reference keeps a share of the point's
+    // own velocity beyond it (FLIP), so that the transfers' smoothing per unit time does not grow
+    points_.v[p] = memory ? Vec<D>(v + transfer_memory_ * (points_.v[p] - transferred)) : v;
     points_.C[p] = C;
     points_.x[p] += dt * v;
     const Mat<D> f = Mat<D>::Identity() + dt * C;

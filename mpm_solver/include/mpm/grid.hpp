@@ -18,6 +18,9 @@ struct Grid : coupler::GridGeometry<D> {
   Vec<D> domain_lower = Vec<D>::Zero(), domain_upper = Vec<D>::Zero();
   std::vector<double> mass;      ///< node mass
   std::vector<Vec<D>> momentum;  ///< node momentum; velocity after the grid update
+  /// Node velocity of the transfer alone, without forces (the FLIP part of G2P, docs/design.md
+  /// section 4.2); sized on the first step that keeps some of the points' own velocity.
+  std::vector<Vec<D>> transfer_velocity;
 
   Grid() = default;
   Grid(const Vec<D>& lower, const Vec<D>& upper, double cell)

@@ -27,6 +27,20 @@ struct RigidBoundary {
   Vec<D> lower = Vec<D>::Zero(), upper = Vec<D>::Zero();   ///< box at time t
 };
 
+/// The step whose APIC transfers set the continuum's numerical dissipation, in units of the stable
+/// step's dx / (c + |v|max): the cfl the standalone solver steps at by default and the materials
+/// were calibrated with.
+inline constexpr double kTransferCfl = 0.5;
+
+/// The share of a point's own velocity beyond the grid's field that a step of dt keeps (its FLIP
+/// part; APIC keeps none): 1 - dt / reference below the reference step, 0 at or above it. Every
+/// APIC transfer smooths the velocity field a little, so a step shorter than the reference (a
+/// coupled run's exchange interval, a low cfl) would dissipate more per unit time; keeping this
+/// share makes the loss per unit time that of the reference step (docs/design.md section 4.2).
+inline double transfer_memory(double dt, double reference) {
+  return reference > 0 && dt < reference ? 1.0 - dt / reference : 0.0;
+}
+
 template <int D>
 class Solver {
  public:
@@ -35,6 +49,8 @@ class Solver {
 
   /// Largest step the CFL condition allows for the current velocities.
   double stable_dt() const;
+  /// The reference step of transfer_memory: kTransferCfl dx / (c + |v|max).
+  double transfer_reference_dt() const { return stable_dt() * (kTransferCfl / scene_.time.cfl); }
   /// The step the next call to step() will take: the stable one, or the
   /// user's fixed step after checking it against the stable one (UserError if unstable).
   double next_dt() const;
@@ -110,12 +126,15 @@ class Solver {
   struct ThreadGrid {
     std::vector<double> mass;
     std::vector<Vec<D>> momentum;
+    std::vector<Vec<D>> transfer;  ///< momentum of the transfer alone (sized when first used)
     std::size_t lo = 0, hi = 0;
   };
   std::vector<ThreadGrid> thread_grids_;
   /// Flat node range the last P2G touched (all threads): what the grid
   /// update visits and the next P2G clears.
   std::size_t active_lo_ = 0, active_hi_ = 0;
+  /// transfer_memory of the step P2G opened (G2P keeps this share of the points' own velocity).
+  double transfer_memory_ = 0;
 };
 
 /// What a run reports as it goes.
