@@ -38,6 +38,7 @@ from column_collapse import combine_surfaces, points_surface, surface_error  # n
 from dem_collapse import run as run_collapse, run_from_settled  # noqa: E402
 from dem_silo import run_dem_silo  # noqa: E402
 from hgtools.logs import ledger_closure, thermo_rows  # noqa: E402
+from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
 
 D = 0.002
@@ -229,7 +230,8 @@ SCENE_ORDER = ("collapse_2d", "silo_2d", "collapse_3d", "silo_3d")
 def write(args, rows: list[dict]) -> None:
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     order = {name: k for k, name in enumerate(SCENE_ORDER)}
-    rows = sorted(rows, key=lambda r: order.get(r["scene"].split(" ")[0], len(order)))    # stable: kept rows first
+    rows = sorted(rows, key=lambda r: (order.get(r["scene"].split(" ")[0], len(order)), -(r.get("aspect") or 0),
+                                       r.get("exchange_every") or 0, r.get("oracle_every") or 0))
     runs = sorted({(r.get("date", stamp), r.get("command", command(args))) for r in rows})
     lines = ["# Adaptive hybrid against pure LAMMPS DEM: accuracy and independence of the numerics", "",
              "; ".join(f"`{c}`, {d}" for d, c in runs) + f" (each row's date in the JSON); "
@@ -243,7 +245,7 @@ def write(args, rows: list[dict]) -> None:
               "rest <= 1.2x the DEM's; silo rate within 2 %; 3D within the LAMMPS-LIGGGHTS spread; the same for "
               "every exchange and oracle interval."]
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("\n".join(lines) + "\n")
+    write_report(args.out, "\n".join(lines))    # the notes below the marker are kept
     args.out.with_suffix(".json").write_text(json.dumps(dict(date=stamp, np=args.np_, rows=rows), indent=1))
 
 
