@@ -126,7 +126,8 @@ def test_grid_chosen_from_the_grains_makes_coarse_points(tmp_path, hybrid_progra
 
 def test_rezone_log_sums_the_rezones_at_thermo_output(tmp_path, hybrid_programs):
     """The rezone log (keyword rezone_log) of the 2D patch, 120 steps on 1 rank (oracle every 20
-    steps, thermo every 10). Full: every rezone prints its lines, and at each thermo output that
+    steps, thermo every 10; cells shearing faster than 2 1/s forced discrete, so that grains turn
+    into points again within the run). Full: every rezone prints its lines, and at each thermo output that
     follows rezones a summary adds them up: its counts are the sums of the rezone lines of its
     steps, its hybrid grains and zones those of the last (and the thermo vector's zones, entries
     16-18, at its step), its carried-mass extremes those over its rezones; the run's summary
@@ -137,7 +138,7 @@ def test_rezone_log_sums_the_rezones_at_thermo_output(tmp_path, hybrid_programs)
     for level in ("full", "summary", "quiet"):
         (tmp_path / level).mkdir()
         logs[level] = run_deck(tmp_path / level, DECKS["2d"], 1, "-var", "nsteps", str(nsteps),
-                               "-var", "rezone_log", level)
+                               "-var", "rezone_log", level, "-var", "shear", "2")
     lines, summaries = rezone_lines(logs["full"]), rezone_summaries(logs["full"])
     oracle_steps = [1] + list(range(21, nsteps, 20))
     assert [r["step"] for r in lines] == oracle_steps
