@@ -243,14 +243,22 @@ void Solver<D>::restore(Particles<D> points, double time, long steps) {
   time_ = time;
   steps_ = steps;
   update_rigid_boundaries();
-  max_wave_speed_ = 0;
-  max_speed_ = 0;
+  // The stable step as the last G2P left it (the steps after a restart take the same substeps and
+  // the same transfer_memory as the run that wrote the state).
+  double max_wave4 = 0, max_speed_sq = 0;
   for (std::size_t p = 0; p < points_.size(); ++p) {
-    const MaterialModel& model = materials_.at(points_.material[p]);
-    const double density = points_.mass[p] / points_.volume0[p];  // the wave speed add_point used
-    max_wave_speed_ = std::max(max_wave_speed_, std::sqrt((model.lame_lambda + 2.0 * model.shear_modulus) / density));
-    max_speed_ = std::max(max_speed_, points_.v[p].norm());
+    max_wave4 = std::max(max_wave4, wave_speed4(p));
+    max_speed_sq = std::max(max_speed_sq, points_.v[p].squaredNorm());
   }
+  max_wave_speed_ = std::sqrt(std::sqrt(max_wave4));
+  max_speed_ = std::sqrt(max_speed_sq);
+}
+
+template <int D>
+double Solver<D>::wave_speed4(std::size_t p) const {
+  const MaterialModel& model = materials_[points_.material[p]];
+  const double Je2 = model.kind == ModelKind::DruckerPrager ? points_.be[p].determinant() : 1.0;
+  return model.wave_speed4(points_.mass[p] / points_.volume0[p], points_.J[p], Je2);
 }
 
 template <int D>
@@ -457,10 +465,9 @@ void Solver<D>::g2p(double dt) {
       update_drucker_prager<D>(model, f, points_.be[p], points_.stress[p], points_.plastic_strain[p]);
     else
       update_mu_i<D>(model, C, dt, points_.mass[p] / points_.volume(p), points_.stress[p], points_.plastic_strain[p]);
-    const double speed_sq = v.squaredNorm();
+    const double speed_sq = points_.v[p].squaredNorm();
     max_speed_sq = std::max(max_speed_sq, speed_sq);
-    const double Je2 = model.kind == ModelKind::DruckerPrager ? points_.be[p].determinant() : 1.0;
-    max_wave4 = std::max(max_wave4, model.wave_speed4(points_.mass[p] / points_.volume0[p], points_.J[p], Je2));
+    max_wave4 = std::max(max_wave4, wave_speed4(p));
     const bool ok = std::isfinite(speed_sq) && std::isfinite(points_.stress[p].sum()) && points_.J[p] > 0 &&
                     (points_.x[p].array() > lo.array()).all() && (points_.x[p].array() < hi.array()).all();
     if (!ok) first_bad = std::min(first_bad, p);

@@ -96,6 +96,8 @@ class Solver {
 
  private:
   void seed_block(const Block& block);
+  /// Fourth power of point p's P-wave speed in its current state (MaterialModel::wave_speed4).
+  double wave_speed4(std::size_t p) const;
   void apply_boundaries(std::size_t node, Vec<D>& v) const;
   void update_rigid_boundaries();
   /// Removes the points inside an outlet, adding them to the outflow.
