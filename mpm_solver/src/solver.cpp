@@ -86,10 +86,7 @@ Solver<D>::Solver(const Scene& scene) : scene_(scene) {
     }
   update_rigid_boundaries();
 
-  for (std::size_t p = 0; p < points_.size(); ++p) {
-    max_wave_speed_ = std::max(max_wave_speed_, materials_[points_.material[p]].wave_speed());
-    max_speed_ = std::max(max_speed_, points_.v[p].norm());
-  }
+  refresh_stable_step_speeds();
   thread_grids_.resize(static_cast<std::size_t>(omp_get_max_threads()));
   for (std::size_t t = 1; t < thread_grids_.size(); ++t) {
     thread_grids_[t].mass.assign(grid_.num_nodes(), 0.0);
@@ -245,6 +242,11 @@ void Solver<D>::restore(Particles<D> points, double time, long steps) {
   update_rigid_boundaries();
   // The stable step as the last G2P left it (the steps after a restart take the same substeps and
   // the same transfer_memory as the run that wrote the state).
+  refresh_stable_step_speeds();
+}
+
+template <int D>
+void Solver<D>::refresh_stable_step_speeds() {
   double max_wave4 = 0, max_speed_sq = 0;
   for (std::size_t p = 0; p < points_.size(); ++p) {
     max_wave4 = std::max(max_wave4, wave_speed4(p));
@@ -270,8 +272,7 @@ void Solver<D>::add_point(const Vec<D>& x, const Vec<D>& v, const Mat<D>& C, dou
   points_.C[p] = C;
   points_.stress[p] = stress;
   if (model.kind == ModelKind::DruckerPrager) points_.be[p] = elastic_state_for_stress<D>(model, stress);
-  const double c = std::sqrt((model.lame_lambda + 2.0 * model.shear_modulus) / (mass / volume));
-  max_wave_speed_ = std::max(max_wave_speed_, c);
+  max_wave_speed_ = std::max(max_wave_speed_, std::sqrt(std::sqrt(wave_speed4(p))));
   max_speed_ = std::max(max_speed_, v.norm());
 }
 

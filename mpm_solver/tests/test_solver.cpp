@@ -279,6 +279,24 @@ TEST(Solver, ElasticWaveSpeedMatchesTheory) {
   EXPECT_NEAR(measured, c, 0.03 * c);
 }
 
+TEST(Solver, PointsAddedUnderStressTakeTheStableStepARestoreGives) {
+  // A point added under strong compression is stiffer than its material at rest (its pressure
+  // stiffens, MaterialModel::wave_speed4): add_point, restore and G2P must bound the step with
+  // the same formula, or a coupled run's first substep after a rezone (or a restart) differs.
+  mpm::Scene scene = base_scene(2);
+  scene.materials[0].drucker_prager.youngs_modulus = 1e6;
+  scene.coupled = true;  // points come from add_point, as from grains
+  const double volume = 1e-4, mass = mpm::MaterialModel(scene.materials[0]).density * volume;
+  mpm::Solver<2> at_rest(scene), compressed(scene);
+  for (auto* s : {&at_rest, &compressed})
+    s->add_point({0.6, 0.5}, {0.1, 0}, mpm::Mat<2>::Zero(), mass, volume, mpm::Mat<2>::Zero(), 0);
+  compressed.add_point({0.5, 0.5}, {0, 0}, mpm::Mat<2>::Zero(), mass, volume, -2e5 * mpm::Mat<2>::Identity(), 0);
+  const double added = compressed.stable_dt();
+  EXPECT_LT(added, 0.97 * at_rest.stable_dt()) << "the compressed point must shorten the step";
+  compressed.restore(compressed.points(), compressed.time(), 0);
+  EXPECT_DOUBLE_EQ(compressed.stable_dt(), added);
+}
+
 namespace {
 /// The front (largest x of a point) of a 2D column collapse (a = 2, 0.1 m wide, E = 10 MPa,
 /// 30 degrees, a Coulomb floor of 0.5) after 0.25 s, stepping at `fraction` of the reference step.

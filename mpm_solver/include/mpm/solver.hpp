@@ -98,6 +98,9 @@ class Solver {
   void seed_block(const Block& block);
   /// Fourth power of point p's P-wave speed in its current state (MaterialModel::wave_speed4).
   double wave_speed4(std::size_t p) const;
+  /// The largest P-wave speed (wave_speed4, as G2P takes it) and point speed over the points:
+  /// the stable step of a solver that has not stepped yet, or restored its points.
+  void refresh_stable_step_speeds();
   void apply_boundaries(std::size_t node, Vec<D>& v) const;
   void update_rigid_boundaries();
   /// Removes the points inside an outlet, adding them to the outflow.
