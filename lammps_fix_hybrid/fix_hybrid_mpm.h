@@ -48,6 +48,7 @@ struct EnergyLedger;
 struct OracleSettings;
 struct FixOptions;
 struct RezoneReport;
+struct RegionShape;
 struct CouplingClock;
 class DemRunLog;
 }
@@ -177,8 +178,8 @@ class FixHybridMPM : public Fix {
   coupler::StepHeader step_header(int kind) const;
   double dem_time(bigint step) const;
   double next_exchange_time(bool force_output) const;
-  void cell_centre(std::size_t c, double *centre) const;
   std::vector<std::uint64_t> discrete_cells();
+  std::vector<coupler::RegionShape> discrete_shapes() const;
   std::array<std::pair<const char *, const std::vector<std::string> *>, 2> named_regions() const;
   std::vector<Region *> prematched(const std::vector<std::string> &ids) const;
   static bool in_any(const std::vector<Region *> &regions, double x, double y, double z);

@@ -65,6 +65,15 @@ void FixHybridMPM::compute_zones()
     error->all(FLERR, fmt::format("Fix hybrid/mpm: continuum region '{}' contains no grid cell centre of the box "
                                   "(cell {}): make the region span at least one cell, or the cell smaller",
                                   opt->continuum_regions[empty], opt->cell));
+  // A discrete region that touches no cell of the box keeps nothing discrete (cells_touched).
+  const std::vector<coupler::RegionShape> discrete = discrete_shapes();
+  const int untouched = domain->dimension == 2
+      ? coupler::first_untouching_region<2>(transfer2->grid(), domain->boxlo, domain->boxhi, discrete)
+      : coupler::first_untouching_region<3>(transfer3->grid(), domain->boxlo, domain->boxhi, discrete);
+  if (untouched >= 0)
+    error->all(FLERR, fmt::format("Fix hybrid/mpm: discrete region '{}' touches no grid cell of the box (cell {}), so "
+                                  "it keeps nothing discrete: make the region span at least a third of a cell, or the "
+                                  "cell smaller", opt->discrete_regions[untouched], opt->cell));
   if (comm->me == 0 && !opt->continuum_regions.empty()) {
     bigint n[3];
     if (domain->dimension == 2) coupler::zone_counts<2>(transfer2->grid(), zones, domain->boxlo, domain->boxhi, n);
@@ -74,21 +83,22 @@ void FixHybridMPM::compute_zones()
 }
 
 /* ----------------------------------------------------------------------
-   grid cells whose centre lies in a discrete region (evaluated now: regions
-   may move); the oracle takes them as boundaries of the material
+   grid cells a discrete region touches (evaluated now: regions may move);
+   the oracle takes them as boundaries of the material
 ------------------------------------------------------------------------- */
 
 std::vector<std::uint64_t> FixHybridMPM::discrete_cells()
 {
-  std::vector<std::uint64_t> cells;
-  if (opt->discrete_regions.empty()) return cells;
-  const std::vector<Region *> regions = prematched(opt->discrete_regions);
-  double centre[3] = {0.0, 0.0, 0.0};
-  for (std::size_t c = 0; c < zones.size(); ++c) {
-    cell_centre(c, centre);
-    if (in_any(regions, centre[0], centre[1], centre[2])) cells.push_back(c);
-  }
-  return cells;
+  const std::vector<coupler::RegionShape> shapes = discrete_shapes();
+  if (domain->dimension == 2) return coupler::cells_touched<2>(transfer2->grid(), shapes);
+  return coupler::cells_touched<3>(transfer3->grid(), shapes);
+}
+
+std::vector<coupler::RegionShape> FixHybridMPM::discrete_shapes() const
+{
+  std::vector<coupler::RegionShape> shapes;
+  for (Region *r : prematched(opt->discrete_regions)) shapes.push_back(coupler::region_shape(r));
+  return shapes;
 }
 
 /* ----------------------------------------------------------------------
@@ -117,19 +127,6 @@ bool FixHybridMPM::in_any(const std::vector<Region *> &regions, double x, double
   for (Region *r : regions)
     if (r->match(x, y, z)) return true;
   return false;
-}
-
-void FixHybridMPM::cell_centre(std::size_t c, double *centre) const
-{
-  if (domain->dimension == 2) {
-    const auto &grid = transfer2->grid();
-    const Vec<2> x = coupler::cell_center<2>(grid, coupler::cell_coords<2>(grid, c));
-    for (int d = 0; d < 2; d++) centre[d] = x[d];
-  } else {
-    const auto &grid = transfer3->grid();
-    const Vec<3> x = coupler::cell_center<3>(grid, coupler::cell_coords<3>(grid, c));
-    for (int d = 0; d < 3; d++) centre[d] = x[d];
-  }
 }
 
 template <>

@@ -9,13 +9,15 @@ instant, so they differ only by what the handoff itself does.
 from __future__ import annotations
 
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from conftest import REPO
 from hgtools.logs import ledger, ledger_closure, thermo_rows, thermo_tables
-from test_coupled_physics import run_deck
+from test_coupled_physics import LAUNCH, env, run_deck
 
 DECKS = {"2d": REPO / "input_decks" / "hybrid" / "adaptive_2d.lmp",
          "3d": REPO / "input_decks" / "hybrid" / "adaptive_3d.lmp"}
@@ -308,3 +310,34 @@ def test_discrete_zone_follows_the_free_surface_of_a_collapsing_column(tmp_path,
     assert released > 0
     assert -end["DEM steps"] > 0.3 * released, end
     assert end["agreement (grains)"] + end["agreement (continuum)"] < 0, end
+
+
+@pytest.mark.parametrize("host, deck", [("lammps", DECKS["3d"]),
+                                        ("liggghts", REPO / "input_decks" / "hybrid" / "adaptive_3d.liggghts")])
+def test_discrete_region_that_touches_no_cell_is_refused(tmp_path, hybrid_programs, host, deck):
+    """A `discrete` region keeps every cell it touches (coupler::cells_touched samples 3^3 points of
+    each cell, since a region narrower than a cell may hold no cell centre: a 3D silo's outlet
+    cylinder about an axis on a node line kept nothing discrete, and with the floor touched its
+    continuum covered the orifice and nothing flowed out). One narrower than the samples' spacing
+    keeps nothing and is refused at the start with the fix: here a cylinder of 0.1 cell about
+    the node line x = z = 0.08 (cells of 0.01 from 0); 0.3 cell runs."""
+    def run(radius):
+        text = deck.read_text().replace(
+            "fix             couple all hybrid/mpm",
+            f"region          keep cylinder y 0.08 0.08 {radius} INF INF units box\n"
+            "fix             couple all hybrid/mpm discrete keep", 1)
+        assert "discrete keep" in text
+        variant = tmp_path / f"r{radius}" / deck.name
+        variant.parent.mkdir()
+        variant.write_text(text)
+        launch = [sys.executable, str(LAUNCH), "--host", host, "-np", "1", str(variant),
+                  "-log", str(variant.parent / "log.txt"), "-var", "nsteps", "20"]
+        return subprocess.run(launch, capture_output=True, text=True, errors="replace", timeout=120, env=env(),
+                              cwd=variant.parent)
+
+    refused = run(0.001)
+    assert refused.returncode != 0
+    assert ("discrete region 'keep' touches no grid cell of the box (cell 0.01), so it keeps nothing discrete: "
+            "make the region span at least a third of a cell, or the cell smaller") in refused.stdout + refused.stderr
+    ran = run(0.003)
+    assert ran.returncode == 0, ran.stdout[-3000:] + ran.stderr[-3000:]

@@ -285,6 +285,64 @@ int first_empty_region(const GridGeometry<D> &grid, const double box_lo[3], cons
   return -1;
 }
 
+namespace {
+// cell c overlaps the box [lo, hi] (on the first D axes)
+template <int D>
+bool cell_overlaps(const GridGeometry<D> &grid, std::size_t c, const double lo[3], const double hi[3]) {
+  double centre[3];
+  centre_of<D>(grid, c, centre);
+  for (int d = 0; d < D; d++)
+    if (centre[d] + 0.5 * grid.dx < lo[d] || centre[d] - 0.5 * grid.dx > hi[d]) return false;
+  return true;
+}
+
+// region r holds one of cell c's sample points (the centre first: most cells a region touches hold it)
+template <int D>
+bool samples_inside(const GridGeometry<D> &grid, std::size_t c, const RegionShape &r) {
+  if (r.bounded && !cell_overlaps<D>(grid, c, r.lo, r.hi)) return false;
+  double centre[3], x[3];
+  centre_of<D>(grid, c, centre);
+  if (r.inside(centre)) return true;
+  constexpr int n = kCellSamplesPerAxis;
+  int samples = 1;
+  for (int d = 0; d < D; d++) samples *= n;
+  for (int s = 0; s < samples; ++s) {
+    int rest = s;
+    x[2] = 0.0;
+    for (int d = 0; d < D; d++, rest /= n) x[d] = centre[d] + ((rest % n + 0.5) / n - 0.5) * grid.dx;
+    if (r.inside(x)) return true;
+  }
+  return false;
+}
+}    // namespace
+
+template <int D>
+std::vector<std::uint64_t> cells_touched(const GridGeometry<D> &grid, const std::vector<RegionShape> &regions) {
+  std::vector<std::uint64_t> cells;
+  if (regions.empty()) return cells;
+  const std::size_t ncells = num_cells<D>(grid);
+  for (std::size_t c = 0; c < ncells; ++c)
+    for (const RegionShape &r : regions)
+      if (samples_inside<D>(grid, c, r)) {
+        cells.push_back(c);
+        break;
+      }
+  return cells;
+}
+
+template <int D>
+int first_untouching_region(const GridGeometry<D> &grid, const double box_lo[3], const double box_hi[3],
+                            const std::vector<RegionShape> &regions) {
+  const std::size_t ncells = num_cells<D>(grid);
+  for (std::size_t k = 0; k < regions.size(); ++k) {
+    bool any = false;
+    for (std::size_t c = 0; c < ncells && !any; ++c)
+      any = cell_overlaps<D>(grid, c, box_lo, box_hi) && samples_inside<D>(grid, c, regions[k]);
+    if (!any) return static_cast<int>(k);
+  }
+  return -1;
+}
+
 template <int D>
 void zone_counts(const GridGeometry<D> &grid, const std::vector<signed char> &zones, const double box_lo[3],
                  const double box_hi[3], std::int64_t counts[3]) {
@@ -309,6 +367,12 @@ template int first_empty_region<2>(const GridGeometry<2> &, const double[3], con
                                    const std::function<bool(int, const double *)> &);
 template int first_empty_region<3>(const GridGeometry<3> &, const double[3], const double[3], int,
                                    const std::function<bool(int, const double *)> &);
+template std::vector<std::uint64_t> cells_touched<2>(const GridGeometry<2> &, const std::vector<RegionShape> &);
+template std::vector<std::uint64_t> cells_touched<3>(const GridGeometry<3> &, const std::vector<RegionShape> &);
+template int first_untouching_region<2>(const GridGeometry<2> &, const double[3], const double[3],
+                                        const std::vector<RegionShape> &);
+template int first_untouching_region<3>(const GridGeometry<3> &, const double[3], const double[3],
+                                        const std::vector<RegionShape> &);
 template void zone_counts<2>(const GridGeometry<2> &, const std::vector<signed char> &, const double[3],
                              const double[3], std::int64_t[3]);
 template void zone_counts<3>(const GridGeometry<3> &, const std::vector<signed char> &, const double[3],

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -110,6 +111,40 @@ TEST(DemCoupling, ZoneCountsAndEmptyRegions) {
   };
   EXPECT_EQ(coupler::first_empty_region<3>(grid, lo, hi, 1, match), -1);
   EXPECT_EQ(coupler::first_empty_region<3>(grid, lo, hi, 2, match), 1);
+}
+
+TEST(DemCoupling, DiscreteRegionsKeepEveryCellTheyTouch) {
+  // A 3D silo's outlet: a vertical cylinder of radius 0.3 cells about an axis on a node line
+  // (x = z = 0.05), up to 0.02 above the floor. It holds no cell centre (they lie 0.71 cells from
+  // the axis); the four columns of cells around the axis touch it, up to the cell holding y = 0.02.
+  const double lo[3] = {0, 0, 0}, hi[3] = {0.1, 0.1, 0.1}, dx = 0.01;
+  const auto grid = coupler::padded_grid<3>(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.1, 0.1, 0.1), dx);
+  auto cylinder = [](double radius) {
+    coupler::RegionShape r;
+    r.inside = [radius](const double *x) {
+      return std::hypot(x[0] - 0.05, x[2] - 0.05) < radius && x[1] > -0.005 && x[1] < 0.02;
+    };
+    return r;
+  };
+  const coupler::RegionShape outlet = cylinder(0.3 * dx);
+  std::vector<std::uint64_t> expected;
+  for (std::size_t c = 0; c < coupler::num_cells<3>(grid); ++c) {
+    const auto x = coupler::cell_center<3>(grid, coupler::cell_coords<3>(grid, c));
+    EXPECT_FALSE(outlet.inside(x.data())) << "no cell centre lies in the outlet";
+    if (std::abs(x[0] - 0.05) < dx && std::abs(x[2] - 0.05) < dx && x[1] > -dx && x[1] < 0.02 + 0.5 * dx)
+      expected.push_back(c);
+  }
+  EXPECT_EQ(expected.size(), 4u * 3u);    // the columns' cells from the floor's down to y = 0.02
+  EXPECT_EQ(coupler::cells_touched<3>(grid, {outlet}), expected);
+  coupler::RegionShape bounded = outlet;    // a fixed region's bounding box only saves work
+  bounded.bounded = true;
+  const double blo[3] = {0.05 - 0.3 * dx, -0.005, 0.05 - 0.3 * dx}, bhi[3] = {0.05 + 0.3 * dx, 0.02, 0.05 + 0.3 * dx};
+  std::copy(blo, blo + 3, bounded.lo), std::copy(bhi, bhi + 3, bounded.hi);
+  EXPECT_EQ(coupler::cells_touched<3>(grid, {bounded}), expected);
+  // a region between the samples of every cell touches none: refused at the start
+  EXPECT_EQ(coupler::first_untouching_region<3>(grid, lo, hi, {outlet}), -1);
+  EXPECT_EQ(coupler::first_untouching_region<3>(grid, lo, hi, {outlet, cylinder(0.1 * dx)}), 1);
+  EXPECT_TRUE(coupler::cells_touched<3>(grid, {cylinder(0.1 * dx)}).empty());
 }
 
 TEST(DemCoupling, HelloRefusesAContainerOutsideTheBox) {

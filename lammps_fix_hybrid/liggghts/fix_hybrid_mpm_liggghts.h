@@ -28,6 +28,7 @@ struct GrainRules;
 struct EnergyLedger;
 struct CouplingClock;
 class DemRunLog;
+struct RegionShape;
 template <int D> class GrainTransfer;
 template <int D> struct PackingTemplate;
 template <int D> struct PlannedGrain;
@@ -102,6 +103,7 @@ class FixHybridMPMLiggghts : public Fix {
   void schedule_rezone(int source);
   class Compute *stress_compute() const;    // that compute; an error if it was deleted
   std::vector<std::uint64_t> discrete_cells() const;
+  std::vector<coupler::RegionShape> discrete_shapes() const;
   std::vector<std::uint64_t> mesh_wall_cells();    // cells the mesh walls pass through now (collective)
   bool mesh_walls_logged = false;
   std::vector<std::string> insertions_warned;    // fix insert/* whose particles this fix does not couple

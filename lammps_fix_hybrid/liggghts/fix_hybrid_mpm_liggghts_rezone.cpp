@@ -80,6 +80,12 @@ void FixHybridMPMLiggghts::compute_zones()
   if (empty >= 0)
     fail("continuum region '" + opt->continuum_regions[empty] + "' contains no grid cell centre of the box (cell " +
          coupler::shortest(opt->cell) + "): make the region span at least one cell, or the cell smaller");
+  // A discrete region that touches no cell of the box keeps nothing discrete (cells_touched).
+  const int untouched = coupler::first_untouching_region<3>(grid, domain->boxlo, domain->boxhi, discrete_shapes());
+  if (untouched >= 0)
+    fail("discrete region '" + opt->discrete_regions[untouched] + "' touches no grid cell of the box (cell " +
+         coupler::shortest(opt->cell) + "), so it keeps nothing discrete: make the region span at least a third of "
+         "a cell, or the cell smaller");
   if (!opt->continuum_regions.empty()) {
     std::int64_t n[3];
     coupler::zone_counts<3>(grid, zones, domain->boxlo, domain->boxhi, n);
@@ -120,25 +126,21 @@ void FixHybridMPMLiggghts::schedule_rezone(int source)
   next_reneighbor = update->ntimestep + 1;
 }
 
-// grid cells whose centre lies in a discrete region now (regions may move): the oracle's boundaries
+// grid cells a discrete region touches now (regions may move): the oracle's boundaries
 std::vector<std::uint64_t> FixHybridMPMLiggghts::discrete_cells() const
 {
-  std::vector<std::uint64_t> cells;
-  std::vector<Region *> regions;
+  return coupler::cells_touched<3>(transfer->grid(), discrete_shapes());
+}
+
+std::vector<coupler::RegionShape> FixHybridMPMLiggghts::discrete_shapes() const
+{
+  std::vector<coupler::RegionShape> shapes;
   for (const auto &rid : opt->discrete_regions) {
-    regions.push_back(domain->regions[domain->find_region(rid.c_str())]);
-    regions.back()->prematch();
+    Region *r = domain->regions[domain->find_region(rid.c_str())];
+    r->prematch();
+    shapes.push_back(coupler::region_shape(r));
   }
-  const auto &grid = transfer->grid();
-  for (std::size_t c = 0; c < zones.size() && !regions.empty(); ++c) {
-    const Vec3 x = coupler::cell_center<3>(grid, coupler::cell_coords<3>(grid, c));
-    for (Region *r : regions)
-      if (r->match(x[0], x[1], x[2])) {
-        cells.push_back(c);
-        break;
-      }
-  }
-  return cells;
+  return shapes;
 }
 
 // LIGGGHTS's mesh walls (fix mesh/surface, the meshes of fix wall/gran ... mesh): the grid cells their

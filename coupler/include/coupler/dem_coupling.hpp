@@ -143,6 +143,43 @@ int apply_group_defaults(FixOptions &options, const GroupGrains &gg, int groupbi
 template <int D>
 int first_empty_region(const GridGeometry<D> &grid, const double box_lo[3], const double box_hi[3], int n,
                        const std::function<bool(int, const double *)> &match);
+/// A region as the zone oracle sees it, whatever the host: `inside(x)` (x a 3-vector, z = 0 in
+/// 2D) and, for a region fixed in space whose bounding box the host can compute, that box.
+struct RegionShape {
+  std::function<bool(const double *)> inside;
+  bool bounded = false;
+  double lo[3] = {0.0, 0.0, 0.0}, hi[3] = {0.0, 0.0, 0.0};
+};
+/// The RegionShape of a host's region (LAMMPS's and LIGGGHTS's Region alike: match, bboxflag,
+/// extent_*, varshape, dynamic_check), after its prematch(); a moving or reshaping region's
+/// bounding box is not kept up to date by its host, so only a fixed one is bounded.
+template <class HostRegion>
+RegionShape region_shape(HostRegion *r) {
+  RegionShape s;
+  s.inside = [r](const double *x) { return r->match(x[0], x[1], x[2]) != 0; };
+  s.bounded = r->bboxflag && !r->varshape && !r->dynamic_check();
+  if (s.bounded) {
+    s.lo[0] = r->extent_xlo, s.lo[1] = r->extent_ylo, s.lo[2] = r->extent_zlo;
+    s.hi[0] = r->extent_xhi, s.hi[1] = r->extent_yhi, s.hi[2] = r->extent_zhi;
+  }
+  return s;
+}
+/// Points per axis at which cells_touched samples a cell (offsets 1/6, 1/2, 5/6 of a cell).
+inline constexpr int kCellSamplesPerAxis = 3;
+/// The grid cells (ascending) that any of `regions` touches: a cell counts when any of
+/// kCellSamplesPerAxis^D points spread evenly over it, its centre among them, lies in a region.
+/// Cells are kept discrete where a region touches them: judged by their centres alone, a region
+/// narrower than a cell may hold none (a 3D silo's outlet cylinder of the orifice's radius about
+/// an axis on a node plane kept nothing discrete, and with the floor touched the continuum then
+/// covered the orifice and nothing flowed out).
+template <int D>
+std::vector<std::uint64_t> cells_touched(const GridGeometry<D> &grid, const std::vector<RegionShape> &regions);
+/// The index of the first region that touches no cell overlapping the box (cells_touched), -1 if
+/// every one touches one: a discrete region smaller than a third of a cell, or outside the box,
+/// keeps nothing discrete and is a mistake.
+template <int D>
+int first_untouching_region(const GridGeometry<D> &grid, const double box_lo[3], const double box_hi[3],
+                            const std::vector<RegionShape> &regions);
 /// Grid cells overlapping the box, per Zone (the padding cells around it are continuum by convention).
 template <int D>
 void zone_counts(const GridGeometry<D> &grid, const std::vector<signed char> &zones, const double box_lo[3],
