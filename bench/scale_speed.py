@@ -306,8 +306,8 @@ def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Pa
 def table(rows: list[dict]) -> list[str]:
     out = ["| scene | W or L0, H (d) | grains | LAMMPS ranks, MPM threads | continuum share (mean) | most points | "
            "DEM wall s | hybrid wall s | speedup (wall) | speedup (CPU time) | predicted | error | runout error | "
-           "coupling s (MPM wait, rezones) |",
-           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+           "coupling s (MPM wait, rezones) | measured (UTC) |",
+           "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     order = lambda r: (r["scene"], -r["cores"], r.get("pinned", False), r["width_d"],  # noqa: E731
                        *((r.get(k) is not None, isinstance(r.get(k), str), r.get(k) or 0) for k in VARIANTS))
     for r in sorted(rows, key=order):
@@ -324,7 +324,7 @@ def table(rows: list[dict]) -> list[str]:
         out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']}{depth} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
                    f"{cpu} | {r['predicted_speedup']:.2f}x | {error} | {runout} | {r['coupling_s']:.1f} "
-                   f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) |")
+                   f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) | {r.get('date', '').removesuffix(' UTC')} |")
     return out
 
 
@@ -404,7 +404,7 @@ def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
     """The report (its notes kept) and the plot of these rows."""
     plot(rows, out.with_suffix(".png"))
     text = ["# Hybrid against pure LAMMPS DEM as the scene grows", "",
-            (f"`{command}`, " if command else "") + f"{stamp} (each row's date in the JSON). DEM and hybrid of a row run side by side on the "
+            (f"`{command}`, " if command else "") + f"{stamp} (each row's date in its last column; rows of other dates come from earlier invocations and code). DEM and hybrid of a row run side by side on the "
             "same LAMMPS ranks, the hybrid's MPM process (its threads) working while LAMMPS waits; a 2-core machine "
             "that may be shared (compare ratios).", "",
             *table(rows), "", "![speedup against size](scale_speed.png)", ""]
