@@ -286,22 +286,21 @@ int first_empty_region(const GridGeometry<D> &grid, const double box_lo[3], cons
 }
 
 namespace {
-// cell c overlaps the box [lo, hi] (on the first D axes)
+// the cell of this centre and width dx overlaps the box [lo, hi] (on the first D axes; a cell that
+// only shares a face with it does not: a box face may lie on the cell lattice)
 template <int D>
-bool cell_overlaps(const GridGeometry<D> &grid, std::size_t c, const double lo[3], const double hi[3]) {
-  double centre[3];
-  centre_of<D>(grid, c, centre);
+bool cell_overlaps(const double centre[3], double dx, const double lo[3], const double hi[3]) {
   for (int d = 0; d < D; d++)
-    if (centre[d] + 0.5 * grid.dx < lo[d] || centre[d] - 0.5 * grid.dx > hi[d]) return false;
+    if (centre[d] + 0.5 * dx <= lo[d] || centre[d] - 0.5 * dx >= hi[d]) return false;
   return true;
 }
 
 // region r holds one of cell c's sample points (the centre first: most cells a region touches hold it)
 template <int D>
 bool samples_inside(const GridGeometry<D> &grid, std::size_t c, const RegionShape &r) {
-  if (r.bounded && !cell_overlaps<D>(grid, c, r.lo, r.hi)) return false;
   double centre[3], x[3];
   centre_of<D>(grid, c, centre);
+  if (r.bounded && !cell_overlaps<D>(centre, grid.dx, r.lo, r.hi)) return false;
   if (r.inside(centre)) return true;
   constexpr int n = kCellSamplesPerAxis;
   int samples = 1;
@@ -336,8 +335,11 @@ int first_untouching_region(const GridGeometry<D> &grid, const double box_lo[3],
   const std::size_t ncells = num_cells<D>(grid);
   for (std::size_t k = 0; k < regions.size(); ++k) {
     bool any = false;
-    for (std::size_t c = 0; c < ncells && !any; ++c)
-      any = cell_overlaps<D>(grid, c, box_lo, box_hi) && samples_inside<D>(grid, c, regions[k]);
+    double centre[3];
+    for (std::size_t c = 0; c < ncells && !any; ++c) {
+      centre_of<D>(grid, c, centre);
+      any = cell_overlaps<D>(centre, grid.dx, box_lo, box_hi) && samples_inside<D>(grid, c, regions[k]);
+    }
     if (!any) return static_cast<int>(k);
   }
   return -1;
@@ -350,10 +352,7 @@ void zone_counts(const GridGeometry<D> &grid, const std::vector<signed char> &zo
   double centre[3];
   for (std::size_t c = 0; c < zones.size(); ++c) {
     centre_of<D>(grid, c, centre);
-    bool in_box = true;    // overlapping it: a face may lie off the cell lattice
-    for (int d = 0; d < D; d++)
-      in_box = in_box && centre[d] + 0.5 * grid.dx > box_lo[d] && centre[d] - 0.5 * grid.dx < box_hi[d];
-    if (in_box) counts[zones[c]]++;
+    if (cell_overlaps<D>(centre, grid.dx, box_lo, box_hi)) counts[zones[c]]++;    // a face may lie off the lattice
   }
 }
 
