@@ -37,6 +37,7 @@ from collapse_report import kinetic_energy_error, thermo_kinetic_energy  # noqa:
 from column_collapse import combine_surfaces, points_surface, surface_error  # noqa: E402
 from dem_collapse import run as run_collapse, run_from_settled  # noqa: E402
 from dem_silo import run_dem_silo  # noqa: E402
+from hgtools.discharge import rate_ratio_se  # noqa: E402
 from hgtools.logs import ledger_closure, thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
@@ -105,8 +106,8 @@ def silo_2d(work: Path, np_: int, quick: bool, pairs) -> list[dict]:
         rows.append(dict(
             scene="silo_2d", grains=ref.grains, aspect=None, exchange_every=every, oracle_every=oracle,
             runout_error=None, surface_error=None, ke_error=None, rate_error=hyb.rate / ref.rate - 1,
-            steps_ratio=None, noise_floor=other.rate / ref.rate - 1,
-            ledger_closure=closure(work / name / "log.lammps"), dem_value=ref.rate, hybrid_value=hyb.rate,
+            steps_ratio=None, noise_floor=other.rate / ref.rate - 1, rate_error_se=rate_ratio_se(hyb, ref),
+            noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"), dem_value=ref.rate, hybrid_value=hyb.rate,
             speedup=ref.wall_time / hyb.wall_time))
         print(f"silo, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
     return rows
@@ -140,12 +141,14 @@ def silo_3d(work: Path, np_: int) -> list[dict]:
     return [dict(scene="silo_3d", grains=ref.grains, aspect=None, exchange_every=EXCHANGE_DEFAULT,
                  oracle_every=ORACLE_DEFAULT, runout_error=None, surface_error=None, ke_error=None,
                  rate_error=hyb.rate / ref.rate - 1, steps_ratio=None, noise_floor=other.rate / ref.rate - 1,
+                 rate_error_se=rate_ratio_se(hyb, ref), noise_floor_se=rate_ratio_se(other, ref),
                  noise_floor_is="LIGGGHTS", ledger_closure=closure(work / "s3_hybrid" / "log.txt"),
                  dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time)]
 
 
-def pct(v) -> str:
-    return "" if v is None else f"{100 * v:+.1f} %"
+def pct(v, se=None) -> str:
+    """A relative error, with its standard error (silo rates: the runs' own fluctuation) when known."""
+    return "" if v is None else f"{100 * v:+.1f} %" + ("" if se is None else f" ± {100 * se:.1f} %")
 
 
 def table(rows: list[dict]) -> list[str]:
@@ -153,7 +156,7 @@ def table(rows: list[dict]) -> list[str]:
              "steps to rest / DEM's | noise floor (another packing) | ledger closure | speed vs DEM |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
-        floor = pct(r["noise_floor"]) + (f" ({r['noise_floor_is']})" if "noise_floor_is" in r else "") \
+        floor = pct(r["noise_floor"], r.get("noise_floor_se")) + (f" ({r['noise_floor_is']})" if "noise_floor_is" in r else "") \
             if r["scene"] != "collapse_2d" else (
             f"surface {100 * r['noise_floor']:.1f} %, runout {pct(r['noise_floor_runout'])}, "
             f"KE {100 * r['noise_floor_ke']:.1f} %, steps x{r['noise_floor_steps_ratio']:.2f}")
@@ -161,7 +164,7 @@ def table(rows: list[dict]) -> list[str]:
             f"| {r['scene']}", str(r["grains"]), "" if r["aspect"] is None else f"{r['aspect']:g}",
             str(r["exchange_every"]), str(r["oracle_every"]), pct(r["runout_error"]),
             "" if r["surface_error"] is None else f"{100 * r['surface_error']:.1f} %",
-            "" if r["ke_error"] is None else f"{100 * r['ke_error']:.1f} %", pct(r["rate_error"]),
+            "" if r["ke_error"] is None else f"{100 * r['ke_error']:.1f} %", pct(r["rate_error"], r.get("rate_error_se")),
             "" if r["steps_ratio"] is None else f"{r['steps_ratio']:.2f}", floor,
             f"{r['ledger_closure']:.1e}", f"{r['speedup']:.2f}x |"]))
     return lines

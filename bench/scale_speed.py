@@ -12,7 +12,8 @@ cores. The hybrid uses the fix's grid from the grains (`hcell 0`: 6 d cells, 2x2
 9 disks per point) unless --hcell says otherwise.
 
 Measures, per size: the DEM's and the hybrid's wall times of the discharge (speedup = DEM over
-hybrid), the steady discharge rate of each (error = hybrid over DEM - 1; beside it the same for the grains
+hybrid), the steady discharge rate of each (error = hybrid over DEM - 1, ± its standard error from the
+two runs' own fluctuation, hgtools.discharge.rate_standard_error; beside it the same for the grains
 counted, since a hybrid's grains may carry more or less than their solid mass), the continuum's share
 of the material (1 - the grains' carried mass over the total, f_couple[8], averaged over the
 thermo rows), and the hybrid's time ledger (entries 30-32: coupling, MPM wait, rezones).
@@ -70,6 +71,7 @@ from column_collapse import combine_surfaces, points_surface, surface_error  # n
 from dem_collapse import run as collapse  # noqa: E402
 import dem3d_silo  # noqa: E402
 from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
+from hgtools.discharge import rate_ratio_se  # noqa: E402
 from hgtools.logs import thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
@@ -241,6 +243,13 @@ class Silo3d(Silo):
         return dem3d_silo.run(code, out=out, hybrid_vars=hybrid_vars, **self.size(n), **self.common)
 
 
+def rate_uncertainty(dem, hyb) -> dict:
+    """Each run's rate's standard error relative to its rate (its own fluctuation,
+    hgtools.discharge.rate_standard_error) and that of the hybrid's rate error."""
+    return dict(rate_se_dem=dem.rate_se / dem.rate, rate_se_hybrid=hyb.rate_se / hyb.rate,
+                error_se=rate_ratio_se(hyb, dem))
+
+
 def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple[tuple[str, float], ...], ...] = (),
              liggghts: bool = False) -> list[dict]:
     """The DEM and the hybrid at the fix's zones, then the hybrid at each of `variants` (pairs of a
@@ -266,9 +275,10 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
         row = dict(scene=silo.scene, grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=silo.orifice_d,
                    **zones, error=hyb.rate / dem.rate - 1, runout_error=None, cores=silo.common["np_"],
                    lammps_ranks=silo.common["np_"], mpm_threads=threads, rate_dem=dem.rate, rate_hybrid=hyb.rate,
-                   grain_rate_error=hyb.grain_rate / dem.grain_rate - 1,
+                   grain_rate_error=hyb.grain_rate / dem.grain_rate - 1, **rate_uncertainty(dem, hyb),
                    mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=silo.hybrid_vars["hcell"],
-                   **({} if noise is None else dict(noise_floor=noise, rate_liggghts=lig.rate)),
+                   **({} if noise is None else dict(noise_floor=noise, rate_liggghts=lig.rate,
+                                                    noise_floor_se=rate_ratio_se(lig, dem))),
                    **speeds(dem, hyb, dem_cpu, hyb_cpu),
                    **cost_model(dem.loop_time, work / f"dem_{tag}{n}" / silo.log, work / name / silo.log, threads,
                                 silo.dim, exchange_interval(hvars, work / name / silo.log)))
@@ -312,12 +322,15 @@ def table(rows: list[dict]) -> list[str]:
                        *((r.get(k) is not None, isinstance(r.get(k), str), r.get(k) or 0) for k in VARIANTS))
     for r in sorted(rows, key=order):
         error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
+        if "error_se" in r:    # the rate error's standard error, from the two runs' own fluctuation
+            error += f" ± {r['error_se']:.1%}"
         if "steps_ratio" in r:    # a collapse: the hybrid's steps to rest over the DEM's (its cap if not at rest)
             error += f", steps x{r['steps_ratio']:.2f}"
         if "grain_rate_error" in r:    # the grains that left, counted (rows from 2026-11-26 on)
             error += f" (grains {r['grain_rate_error']:+.1%})"
         if "noise_floor" in r:    # pure LIGGGHTS from the same packing against LAMMPS
-            error += f"; LIGGGHTS {r['noise_floor']:+.1%}"
+            error += f"; LIGGGHTS {r['noise_floor']:+.1%}" + (f" ± {r['noise_floor_se']:.1%}" if "noise_floor_se" in r
+                                                              else "")
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
         depth = f", {variant_label(r, unit='')}" if is_variant(r) else ""

@@ -56,6 +56,7 @@ import numpy as np
 import pytest
 
 from dem3d_silo import run
+from hgtools.discharge import rate_ratio_se
 
 WIDTH, HEIGHT, ORIFICE, D = 0.03, 0.04, 0.012, 0.002
 SEED, NP = 2024, 2
@@ -147,7 +148,7 @@ def test_discharge_is_steady(results, code):
 def test_lammps_and_liggghts_rates_agree(results):
     a, b = results["lammps"], results["liggghts"]
     diff = b.rate / a.rate - 1
-    print(f"rate: LAMMPS {a.rate:.5f} kg/s, LIGGGHTS {b.rate:.5f} kg/s: {diff:+.1%}")
+    print(f"rate: LAMMPS {a.rate:.5f} kg/s, LIGGGHTS {b.rate:.5f} kg/s: {diff:+.1%} ± {rate_ratio_se(b, a):.1%}")
     assert abs(diff) < CODE_TOLERANCE, (a.summary(), b.summary())
 
 
@@ -214,7 +215,7 @@ def test_hybrid_silo_discharge_rate_matches_pure_dem(results, hybrid):
     res, _ = hybrid
     dem = results["lammps"]
     diff = res.rate / dem.rate - 1
-    print(f"rate: hybrid {res.rate:.5f} kg/s against LAMMPS {dem.rate:.5f}: {diff:+.1%}")
+    print(f"rate: hybrid {res.rate:.5f} kg/s against LAMMPS {dem.rate:.5f}: {diff:+.1%} ± {rate_ratio_se(res, dem):.1%}")
     assert abs(diff) < HYBRID_TOLERANCE, (res.summary(), dem.summary())
 
 
