@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 
 #include "coupler/oracle.hpp"
 #include "coupler/text.hpp"
@@ -116,6 +117,7 @@ GrainGrid grid_from_grains(int dimension, double grain_diameter, double packing,
   const double cell_in_grains = std::max(kSmallestCellInGrains, std::ceil(2.0 * least - 1e-9) / 2.0);
   GrainGrid g;
   g.cell = cell_in_grains * grain_diameter;
+  g.smallest_cell = std::max(kSmallestCellInGrains, least) * grain_diameter;
   g.points_per_axis = points_per_axis;
   g.grains_per_point = grains_per_point(dimension, cell_in_grains, packing, points_per_axis);
   return g;
@@ -160,19 +162,26 @@ std::string misfit_note(double cell, const std::vector<TouchedSpan> &spans) {
 
 }    // namespace
 
-double cell_dividing(double nominal, const std::vector<TouchedSpan> &spans) {
+double cell_dividing(double nominal, const std::vector<TouchedSpan> &spans, double smallest) {
   if (spans.empty()) return nominal;
   const double first = spans.front().width;
-  const long n0 = std::max(1L, std::lround(first / nominal));
-  // nearest the nominal cell first: n0, n0 + 1, n0 - 1, ... while within a quarter of it
-  for (long step = 0; step <= n0; ++step)
-    for (const long n : {n0 + step, n0 - step}) {
-      if (n < 1 || std::abs(first / n - nominal) > 0.25 * nominal) continue;
-      const double cell = first / n;
-      if (std::all_of(spans.begin(), spans.end(), [&](const TouchedSpan &s) { return divides(cell, s.width); }))
-        return cell;
-    }
-  return first / n0;
+  // at most this many cells across the first span: none finer than `smallest` (a relative
+  // margin, so that a width of exactly n smallest cells still takes n)
+  const long most = smallest > 0.0 ? std::max(1L, static_cast<long>(std::floor(first / smallest * (1.0 + 1e-9))))
+                                   : std::numeric_limits<long>::max();
+  // the counts whose cell lies within a quarter of the nominal one, nearest it first and the
+  // coarser of two as near (a width of n + 1/2 nominal cells must not be decided by rounding)
+  std::vector<long> counts;
+  for (long n = std::max(1L, static_cast<long>(std::ceil(first / (1.25 * nominal))));
+       n <= std::min(most, static_cast<long>(std::floor(first / (0.75 * nominal)))); ++n)
+    counts.push_back(n);
+  std::stable_sort(counts.begin(), counts.end(), [&](long a, long b) {
+    return std::abs(first / a - nominal) < std::abs(first / b - nominal) * (1.0 - 1e-12);
+  });
+  for (const long n : counts)
+    if (std::all_of(spans.begin(), spans.end(), [&](const TouchedSpan &s) { return divides(first / n, s.width); }))
+      return first / n;
+  return first / (counts.empty() ? std::clamp(std::lround(first / nominal), 1L, most) : counts.front());
 }
 
 std::string resolve_grid(FixOptions &o, int dimension, double grain_diameter, const std::vector<TouchedSpan> &spans) {
@@ -187,7 +196,7 @@ std::string resolve_grid(FixOptions &o, int dimension, double grain_diameter, co
   if (o.cell <= 0.0) {
     const int per_axis = o.points_given ? c.points_per_axis : kPointsPerAxis;
     const GrainGrid g = grid_from_grains(dimension, grain_diameter, packing, per_axis);
-    o.cell = cell_dividing(g.cell, spans);
+    o.cell = cell_dividing(g.cell, spans, g.smallest_cell);
     c.points_per_axis = g.points_per_axis;
     chosen = " (chosen from the grains";
     if (o.cell != g.cell)

@@ -11,6 +11,8 @@
 #include <vector>
 
 #include "coupler/dem_coupling.hpp"
+#include "coupler/fix_options.hpp"
+#include "coupler/tuning.hpp"
 
 namespace {
 
@@ -257,6 +259,28 @@ TEST(DemCoupling, CellDividingIsNearestTheNominalCell) {
   EXPECT_NEAR(coupler::cell_dividing(0.01, {{0, 0.2}, {1, 0.2}}), 0.01, 1e-15);
   // 0.3 and 0.2 wide: 0.1 / n cells divide both; 0.0125 = 0.1 / 8 is nearest 0.012
   EXPECT_NEAR(coupler::cell_dividing(0.012, {{0, 0.3}, {1, 0.2}}), 0.0125, 1e-15);
+  // 8.5 nominal cells across: 9 cells are nearer the nominal one, but finer than the smallest
+  // that gives a point its grains, so 8 (the 3D silo of W = 34 d: 4 d nominal, 3.81 d smallest);
+  // without a smallest cell the nearest
+  EXPECT_NEAR(coupler::cell_dividing(0.008, {{0, 0.068}, {2, 0.068}}, 0.00762), 0.068 / 8, 1e-15);
+  EXPECT_NEAR(coupler::cell_dividing(0.008, {{0, 0.068}, {2, 0.068}}), 0.068 / 9, 1e-15);
+  // a width of exactly n smallest cells takes n; two counts as near: the coarser
+  EXPECT_NEAR(coupler::cell_dividing(0.008, {{0, 0.064}}, 0.0064 / 0.8), 0.008, 1e-15);
+  const double tie = 2.0 * 0.008 * 8 * 9 / 17;    // 8 and 9 cells lie as far from 0.008 either side
+  EXPECT_NEAR(coupler::cell_dividing(0.008, {{0, tie}}), tie / 8, 1e-15);
+}
+
+TEST(DemCoupling, GridFromTheGrainsGivesEveryPointItsGrains) {
+  // the 3D silo decks' widths (spheres of 2 mm at packing 0.606, both side spans touched): the
+  // fitted cell never leaves a point with fewer than kGrainsPerPoint grains
+  for (const int width_d : {12, 18, 26, 34, 40, 52}) {
+    const double width = width_d * 0.002;
+    const coupler::GrainGrid g = coupler::grid_from_grains(3, 0.002, 0.606, 2);
+    const double cell = coupler::cell_dividing(g.cell, {{0, width}, {2, width}}, g.smallest_cell);
+    const double grains = 0.606 * std::pow(cell / 0.002, 3) / (3.14159265358979 / 6.0 * 8.0);
+    EXPECT_GE(grains, coupler::kGrainsPerPoint * (1.0 - 1e-12)) << width_d << " d: cell " << cell;
+    EXPECT_LE(std::abs(cell / g.cell - 1.0), 0.25) << width_d;
+  }
 }
 
 }    // namespace

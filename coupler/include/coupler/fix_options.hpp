@@ -109,6 +109,7 @@ struct GrainGrid {
   double cell = 0.0;
   int points_per_axis = 0;
   double grains_per_point = 0.0;    ///< at `packing`
+  double smallest_cell = 0.0;       ///< the finest cell whose points carry kGrainsPerPoint grains
 };
 GrainGrid grid_from_grains(int dimension, double grain_diameter, double packing, int points_per_axis);
 
@@ -125,9 +126,10 @@ struct TouchedSpan {
 std::vector<TouchedSpan> touched_spans(const FixOptions &options, int dimension, const double box_lo[3],
                                        const double box_hi[3]);
 
-/// The cell nearest `nominal` (within a quarter of it) that divides every span, else the one
-/// nearest it that divides the first span; `nominal` if there are none.
-double cell_dividing(double nominal, const std::vector<TouchedSpan> &spans);
+/// The cell nearest `nominal` (within a quarter of it, no finer than `smallest`; the coarser of
+/// two as near) that divides every span, else the one nearest it that divides the first span;
+/// `nominal` if there are no spans.
+double cell_dividing(double nominal, const std::vector<TouchedSpan> &spans, double smallest = 0.0);
 
 /// Completes the options once the grains are known: without `cell` on the fix line the cell and
 /// the points per cell come from the grains' mean diameter (grid_from_grains, then
