@@ -124,10 +124,12 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     }
   auto& pts = solver_.points();
   std::vector<std::uint8_t> has_points(n, 0);
+  std::vector<double> point_mass(n, 0.0);
   std::vector<std::size_t> point_cell(pts.size());
   for (std::size_t p = 0; p < pts.size(); ++p) {
     point_cell[p] = coupler::cell_index<D>(geometry, coupler::cell_of<D>(geometry, pts.x[p]));
     has_points[point_cell[p]] = 1;
+    point_mass[point_cell[p]] += pts.mass[p];
   }
 
   // The new zones
@@ -171,15 +173,18 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     }
   }
 
-  // Cells whose material moves: a changed zone, or material of the wrong kind for the zone
-  // (points that drifted into a discrete cell, grains into a continuum cell).
+  // Cells whose material moves: a changed zone, material of the wrong kind for the zone
+  // (points that drifted into a discrete cell, grains into a continuum cell), or a hybrid cell
+  // whose grains drained out (kStarvedGrains).
   moving_.clear();
   std::vector<std::int64_t> slot(n, -1);
   for (std::size_t c = 0; c < n; ++c) {
     const bool grains = volume[c] > 0, points = has_points[c] != 0;
     if (!grains && !points) continue;
     const bool stray = (next[c] == coupler::kDiscrete && points) || (next[c] == coupler::kContinuum && grains);
-    if (next[c] == zones_[c] && !stray) continue;
+    const bool starved = next[c] == coupler::kHybrid && points &&
+                         grain_mass[c] < coupler::kStarvedGrains * cs.grain_weight * (grain_mass[c] + point_mass[c]);
+    if (next[c] == zones_[c] && !stray && !starved) continue;
     slot[c] = static_cast<std::int64_t>(moving_.size());
     MovingCell m;
     m.plan.cell = c;

@@ -165,4 +165,38 @@ TEST(CoupledRezone, KeptRestWaitsInTheSamePoints) {
   }
 }
 
+// A hybrid cell keeps its zone while its grains flow out below it and points come in from above
+// (the band over a silo's orifice). Once its grains carry less than kStarvedGrains of their share
+// of its material the rezone plans it again so that new grains are made from its points: without
+// that the band emptied of grains, its points had nothing to agree with and fell through it into
+// the discrete region (the 2D silo of 90 d, from 0.4 s on). While its grains hold their share it
+// is left alone.
+TEST(CoupledRezone, HybridCellDrainedOfItsGrainsMakesThemAgain) {
+  const coupler::Hello hello = square_box();
+  mpm::CoupledContinuum<2> continuum(hello);
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+  const std::uint64_t x = coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(5.5, 5.5)));
+  zones[x] = coupler::kHybrid;
+  const double packed = 0.8 * kSolidContent, weight = hello.continuum.grain_weight;
+  Rezone start;
+  add_grains(start, grid, x, packed);
+  const double points = rezone(continuum, zones, start).mass;  // the points take the rest of the cell
+  ASSERT_NEAR(points, (1 - weight) * packed, 1e-12 * packed);
+
+  auto planned = [&](double grains_carry) {  // is x planned, and to make grains, with its grains carrying this
+    Rezone now;
+    if (grains_carry > 0) now.volumes.push_back({x, grains_carry / weight / kGrainDensity, grains_carry});
+    for (const auto& plan : continuum.plan_rezone(0.0, coupler::kZonesGiven, zones, coupler::OracleSettings{}, {},
+                                                  {now.volumes}))
+      if (plan.cell == x) return plan.make_grains == 1 ? 2 : 1;
+    return 0;
+  };
+  EXPECT_EQ(planned(weight * packed), 0) << "grains at their share: left alone";
+  continuum.complete_rezone({});
+  EXPECT_EQ(planned(0.6 * weight * packed), 0) << "a few left: still left alone";
+  continuum.complete_rezone({});
+  EXPECT_EQ(planned(0.3 * weight * packed), 2) << "most drained out: grains made again";
+}
+
 }  // namespace

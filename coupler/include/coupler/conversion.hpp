@@ -172,6 +172,13 @@ static_assert(std::is_trivially_copyable_v<CellMoments<2>> && std::is_trivially_
 /// material than its grains; its points take a smaller surplus.
 inline constexpr double kHeaviestGrains = 1.2;
 
+/// A hybrid cell whose grains carry less than this share of what its zone gives them (its weight
+/// times the cell's material) has had its grains drain out: a rezone remakes them. Where grains
+/// leave a hybrid band downwards and points come in from above (the band over a silo's orifice)
+/// the band otherwise empties of grains, its points have nothing left to agree with, and the
+/// continuum falls through the band into the discrete region (docs/design.md 5.6).
+inline constexpr double kStarvedGrains = 0.5;
+
 /// The heaviest a rezone makes grains, as a multiple of their solid share, where a cell's surplus
 /// of material finds no points near to take it (the continuum is nearly gone).
 inline constexpr double kHeaviestKept = 2.0;
