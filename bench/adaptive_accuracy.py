@@ -107,8 +107,8 @@ def silo_2d(work: Path, np_: int, quick: bool, pairs) -> list[dict]:
             scene="silo_2d", grains=ref.grains, aspect=None, exchange_every=every, oracle_every=oracle,
             runout_error=None, surface_error=None, ke_error=None, rate_error=hyb.rate / ref.rate - 1,
             steps_ratio=None, noise_floor=other.rate / ref.rate - 1, rate_error_se=rate_ratio_se(hyb, ref),
-            noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"), dem_value=ref.rate, hybrid_value=hyb.rate,
-            speedup=ref.wall_time / hyb.wall_time))
+            noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
+            dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time))
         print(f"silo, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
     return rows
 

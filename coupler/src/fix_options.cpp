@@ -169,19 +169,24 @@ double cell_dividing(double nominal, const std::vector<TouchedSpan> &spans, doub
   // margin, so that a width of exactly n smallest cells still takes n)
   const long most = smallest > 0.0 ? std::max(1L, static_cast<long>(std::floor(first / smallest * (1.0 + 1e-9))))
                                    : std::numeric_limits<long>::max();
-  // the counts whose cell lies within a quarter of the nominal one, nearest it first and the
-  // coarser of two as near (a width of n + 1/2 nominal cells must not be decided by rounding)
-  std::vector<long> counts;
-  for (long n = std::max(1L, static_cast<long>(std::ceil(first / (1.25 * nominal))));
-       n <= std::min(most, static_cast<long>(std::floor(first / (0.75 * nominal)))); ++n)
-    counts.push_back(n);
-  std::stable_sort(counts.begin(), counts.end(), [&](long a, long b) {
-    return std::abs(first / a - nominal) < std::abs(first / b - nominal) * (1.0 - 1e-12);
+  // the counts whose cell lies within a quarter of the nominal one
+  const long fewest = std::max(1L, static_cast<long>(std::ceil(first / (1.25 * nominal))));
+  const long last = std::min(most, static_cast<long>(std::floor(first / (0.75 * nominal))));
+  // the allowed count whose cell is nearest the nominal one; scanned coarsest first, so the coarser
+  // of two as near wins (a width of n + 1/2 nominal cells must not be decided by rounding)
+  const auto nearest = [&](auto &&allowed) {
+    long best = 0;
+    for (long n = fewest; n <= last; ++n)
+      if (allowed(n) && (best == 0 || std::abs(first / n - nominal) < std::abs(first / best - nominal) * (1.0 - 1e-12)))
+        best = n;
+    return best;
+  };
+  const long all = nearest([&](long n) {
+    return std::all_of(spans.begin(), spans.end(), [&](const TouchedSpan &s) { return divides(first / n, s.width); });
   });
-  for (const long n : counts)
-    if (std::all_of(spans.begin(), spans.end(), [&](const TouchedSpan &s) { return divides(first / n, s.width); }))
-      return first / n;
-  return first / (counts.empty() ? std::clamp(std::lround(first / nominal), 1L, most) : counts.front());
+  if (all > 0) return first / all;
+  const long any = nearest([](long) { return true; });
+  return first / (any > 0 ? any : std::clamp(std::lround(first / nominal), 1L, most));
 }
 
 std::string resolve_grid(FixOptions &o, int dimension, double grain_diameter, const std::vector<TouchedSpan> &spans) {

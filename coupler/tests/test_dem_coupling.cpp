@@ -273,9 +273,9 @@ TEST(DemCoupling, CellDividingIsNearestTheNominalCell) {
 TEST(DemCoupling, GridFromTheGrainsGivesEveryPointItsGrains) {
   // the 3D silo decks' widths (spheres of 2 mm at packing 0.606, both side spans touched): the
   // fitted cell never leaves a point with fewer than kGrainsPerPoint grains
+  const coupler::GrainGrid g = coupler::grid_from_grains(3, 0.002, 0.606, 2);
   for (const int width_d : {12, 18, 26, 34, 40, 52}) {
     const double width = width_d * 0.002;
-    const coupler::GrainGrid g = coupler::grid_from_grains(3, 0.002, 0.606, 2);
     const double cell = coupler::cell_dividing(g.cell, {{0, width}, {2, width}}, g.smallest_cell);
     const double grains = 0.606 * std::pow(cell / 0.002, 3) / (3.14159265358979 / 6.0 * 8.0);
     EXPECT_GE(grains, coupler::kGrainsPerPoint * (1.0 - 1e-12)) << width_d << " d: cell " << cell;

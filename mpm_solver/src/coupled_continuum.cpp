@@ -183,7 +183,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     if (!grains && !points) continue;
     const bool stray = (next[c] == coupler::kDiscrete && points) || (next[c] == coupler::kContinuum && grains);
     const bool starved = next[c] == coupler::kHybrid && points &&
-                         grain_mass[c] < coupler::kStarvedGrains * cs.grain_weight * (grain_mass[c] + point_mass[c]);
+                         grain_mass[c] < coupler::kStarvedGrains * grain_share(coupler::kHybrid) * (grain_mass[c] + point_mass[c]);
     if (next[c] == zones_[c] && !stray && !starved) continue;
     slot[c] = static_cast<std::int64_t>(moving_.size());
     MovingCell m;

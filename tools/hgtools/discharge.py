@@ -55,7 +55,7 @@ def rate_standard_error(t: np.ndarray, m_out: np.ndarray, blocks: int = RATE_BLO
     uncertain by about 1/sqrt(grains discharged in the window); this is the figure a hybrid's rate
     error must be read against (the blocks must outlast the flow's correlation time: in the decks'
     silos the estimate is the same for blocks of 0.01 to 0.1 s)."""
-    groups = [g for g in np.array_split(np.arange(len(t) - 1), min(blocks, len(t) - 1)) if len(g)]
+    groups = np.array_split(np.arange(len(t) - 1), min(blocks, len(t) - 1))    # fit_rate: >= 6 records
     rates = np.array([(m_out[g[-1] + 1] - m_out[g[0]]) / (t[g[-1] + 1] - t[g[0]]) for g in groups])
     return float(rates.std(ddof=1) / np.sqrt(len(rates))) if len(rates) > 1 else float("nan")
 
