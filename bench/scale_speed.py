@@ -273,7 +273,8 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
             name += f"_{VARIANTS[key][1]}{variant_value(value)}"
         hyb, hyb_cpu = timed(silo.run, n=n, out=work / name, hybrid_vars=hvars)
         row = dict(scene=silo.scene, grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=silo.orifice_d,
-                   **zones, error=hyb.rate / dem.rate - 1, runout_error=None, cores=silo.common["np_"],
+                   **zones, error=hyb.rate / dem.rate - 1, runout_error=None, discharge_s=silo.common["tdis"],
+                   cores=silo.common["np_"],
                    lammps_ranks=silo.common["np_"], mpm_threads=threads, rate_dem=dem.rate, rate_hybrid=hyb.rate,
                    grain_rate_error=hyb.grain_rate / dem.grain_rate - 1, **rate_uncertainty(dem, hyb),
                    mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=silo.hybrid_vars["hcell"],
@@ -322,6 +323,8 @@ def table(rows: list[dict]) -> list[str]:
                        *((r.get(k) is not None, isinstance(r.get(k), str), r.get(k) or 0) for k in VARIANTS))
     for r in sorted(rows, key=order):
         error = f"rate {r['error']:+.1%}" if r["scene"].startswith("silo") else f"surface {r['error']:.1%} of H0"
+        if "discharge_s" in r:    # the discharge the rates are fitted over, from the opening
+            error += f" over {r['discharge_s']:g} s"
         if "error_se" in r:    # the rate error's standard error, from the two runs' own fluctuation
             error += f" ± {r['error_se']:.1%}"
         if "steps_ratio" in r:    # a collapse: the hybrid's steps to rest over the DEM's (its cap if not at rest)
