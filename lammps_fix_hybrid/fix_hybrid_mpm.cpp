@@ -60,7 +60,7 @@ Fix *FixHybridMPM::creator(LAMMPS *lmp, int narg, char **arg)
 /* ---------------------------------------------------------------------- */
 
 FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
-    Fix(lmp, narg, arg), exchanges(0), restart_exchanges(0), last_step(0), last_output_step(-1), weight(nullptr),
+    Fix(lmp, narg, arg), exchanges(0), restart_exchanges(0), last_step(0), weight(nullptr),
     support(nullptr), converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle),
     new_grain_mask(1), polydispersity(0.0), timestep_checked(false), fewest_steps_warned(coupler::kBig),
     restored(false), state_loaded(false), clock(new coupler::CouplingClock), stress_id(nullptr),
@@ -308,8 +308,8 @@ void FixHybridMPM::end_of_step()
     run_log->charge(coupler::kTimeOutput, MPI_Wtime() - log_start);
   }
   if (step % opt->every != 0) return;
-  if (domain->dimension == 2) exchange<2>(false);
-  else exchange<3>(false);
+  if (domain->dimension == 2) exchange<2>();
+  else exchange<3>();
   // the zone oracle right after this exchange (the MPM process did not advance past it),
   // unless the run ends here: the next run's setup reorders the atoms
   if (opt->oracle_after(step, update->laststep, converted))
@@ -320,12 +320,10 @@ void FixHybridMPM::end_of_step()
 
 void FixHybridMPM::post_run()
 {
-  // the state at the end of every run is in the output file (an exchange at this step)
-  if (link && opt->continuum.output_every > 0 && last_output_step != update->ntimestep) {
-    if (domain->dimension == 2) exchange<2>(true);
-    else exchange<3>(true);
-  }
   last_step = update->ntimestep;
+  const std::string frameless = coupler::frameless_run_warning(opt->continuum.output_every,
+                                                               run_log->run_timing().exchanges, update->nsteps, opt->every);
+  if (comm->me == 0 && link && !frameless.empty()) error->warning(FLERR, frameless);
   log_rezone_summary(true);
   if (comm->me == 0 && link)
     utils::logmesg(lmp, fmt::format("fix hybrid/mpm: {} exchange(s) with the MPM process so far\n", exchanges));

@@ -101,7 +101,6 @@ class FixHybridMPM : public Fix {
   bigint exchanges;                       // completed step exchanges (all runs)
   bigint restart_exchanges;               // exchanges read from a restart file
   bigint last_step;                       // last step seen (for the finish message)
-  bigint last_output_step;                // step of the last output frame
 
   double *weight;                         // per-atom share of its material a grain carries
   // a grain's mass at weight 1 from its radius and the grains' density (rezones give every grain
@@ -164,7 +163,7 @@ class FixHybridMPM : public Fix {
   double dem_steps_per_contact(std::string &why);
   void check_dem_timestep(const std::string &when);
   void store_atom_stress();
-  template <int D> void exchange(bool force_output);
+  template <int D> void exchange();
   void check_finite_grains(const std::string &when);
   template <int D> coupler::GrainTransfer<D> &transfer();
   void collect_supported();
@@ -177,7 +176,7 @@ class FixHybridMPM : public Fix {
   double dem_time() const;
   coupler::StepHeader step_header(int kind) const;
   double dem_time(bigint step) const;
-  double next_exchange_time(bool force_output) const;
+  double next_exchange_time() const;
   std::vector<std::uint64_t> discrete_cells();
   std::vector<coupler::RegionShape> discrete_shapes() const;
   std::array<std::pair<const char *, const std::vector<std::string> *>, 2> named_regions() const;

@@ -32,19 +32,16 @@ using namespace LAMMPS_NS::hybrid_mpm;
 /* ----------------------------------------------------------------------
    time of the next exchange if it is certain now, else -1: the MPM process
    then advances to it while LAMMPS computes its steps. Not certain: the run
-   ends first (unless the end-of-run output frame is an exchange), or a
-   restart file is written before it (the MPM state must then be that of
-   this exchange)
+   ends first, a rezone follows, or a restart file is written before it (the
+   MPM state must then be that of this exchange)
 ------------------------------------------------------------------------- */
 
-double FixHybridMPM::next_exchange_time(bool force_output) const
+double FixHybridMPM::next_exchange_time() const
 {
   coupler::ExchangeOutlook o;
   o.now = update->ntimestep, o.last_step = update->laststep, o.every = opt->every;
-  o.forced_output = force_output;
   o.rezone_next = opt->oracle_after(o.now, update->laststep, converted);
   o.restart_file = output->restart_flag && output->next_restart >= o.now && output->next_restart < o.now + opt->every;
-  o.output_frames = opt->continuum.output_every > 0;
   const bigint next = coupler::next_exchange_step(o);
   return next < 0 ? -1.0 : dem_time(next);
 }
@@ -105,7 +102,7 @@ void FixHybridMPM::check_finite_grains(const std::string &when)
 }
 
 template <int D>
-void FixHybridMPM::exchange(bool force_output)
+void FixHybridMPM::exchange()
 {
   const double start = MPI_Wtime();
   check_finite_grains("before the exchange");
@@ -115,9 +112,10 @@ void FixHybridMPM::exchange(bool force_output)
   const std::vector<int> index = coupler::coupled_grains(g, [&](const double *xi) { return zone_of(xi); });
 
   coupler::StepHeader h = step_header(coupler::kStepCouple);
-  h.output = coupler::output_frame_due(opt->continuum.output_every, exchanges, force_output) ? 1 : 0;
-  if (h.output) last_output_step = update->ntimestep;
-  h.next_time = next_exchange_time(force_output);
+  // every N exchanges, and the run's last: the file holds each run's last coupled state
+  const bool run_ends = coupler::last_exchange_of_run(update->ntimestep, opt->every, update->laststep);
+  h.output = coupler::output_frame_due(opt->continuum.output_every, exchanges, run_ends) ? 1 : 0;
+  h.next_time = next_exchange_time();
   coupler::StepAck ack;
   coupler::ExchangeTally tally;
   // the session's round trip is the wait for the MPM process (coupler::DemRunLog::charge_exchange)
@@ -292,5 +290,5 @@ int FixHybridMPM::maxsize_restart()
 }
 
 // end_of_step and post_run (fix_hybrid_mpm.cpp) exchange in 2D and 3D
-template void FixHybridMPM::exchange<2>(bool);
-template void FixHybridMPM::exchange<3>(bool);
+template void FixHybridMPM::exchange<2>();
+template void FixHybridMPM::exchange<3>();

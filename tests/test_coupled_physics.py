@@ -294,6 +294,33 @@ def test_restart_continues_the_coupled_run(tmp_path, hybrid_programs):
     assert coupled_dv <= 2 * lammps_dv + 1e-12
 
 
+def test_output_frames_do_not_change_the_run(tmp_path, hybrid_programs):
+    """The same deck run in four LAMMPS runs (steps 0-25, 25-50, 50-67, 67-69, exchanging every
+    10), with and without output frames, ends with the same grains to the last bit: a frame is
+    written at the last exchange of each run (steps 20, 50 and 60), not by an extra exchange at
+    the run's end, whose agreement would change the run. The last run has no exchange, so no
+    frame, and the fix says so."""
+    deck = MOMENTUM_DECK.read_text()
+    marker, fix = "run             ${nsteps}", "every ${every} pic ${pic} youngs 1.0e5"
+    assert marker in deck and fix in deck
+    runs = "run 25\nrun 25\nrun 17\nrun 2\nwrite_dump all custom final.dump id x y vx vy modify sort id format float %.17g\n"
+    finals, logs = {}, {}
+    for name, output in (("plain", ""), ("frames", " output frames 1000")):
+        out = tmp_path / name
+        out.mkdir()
+        (out / "deck.lmp").write_text(deck.replace(marker, runs).replace(fix, fix + output))
+        logs[name] = run_deck(out, out / "deck.lmp", 2, "-var", "every", "10")
+        finals[name] = (out / "final.dump").read_text()
+    assert finals["frames"] == finals["plain"]
+    frameless = "this run of 2 step(s) had no exchange (every 10), so it wrote no output frame"
+    assert frameless in logs["frames"] and frameless not in logs["plain"]
+    frames = mpm_results.load_run(tmp_path / "frames" / "frames")
+    steps = [round(info.time / 1.0e-5) for info in frames.frames]
+    assert steps == [10, 20, 50, 60], steps    # the first exchange's (every 1000th), then each run's last
+    grains = mpm_results.read_grains(tmp_path / "frames" / "frames", -1)
+    assert round(float(grains["time"]) / 1.0e-5) == 60
+
+
 @pytest.mark.parametrize("dim,host", SCENES)
 def test_conversion_keeps_mass_momentum_and_angular_momentum_exactly(tmp_path, hybrid_programs, dim, host):
     """Grains that do not touch (a lattice looser than their diameter), spinning and moving at
@@ -398,7 +425,8 @@ def test_new_points_stress_is_that_of_their_grains_when_another_fix_reorders_ato
         run_dir = tmp_path / name
         run_dir.mkdir()
         (run_dir / "deck.lmp").write_text(deck_text)
-        log = run_deck(run_dir, run_dir / "deck.lmp", 1, "-var", "nsteps", "1")
+        # (every 1: the frame of the exchange at step 1, right after the rezone)
+        log = run_deck(run_dir, run_dir / "deck.lmp", 1, "-var", "nsteps", "1", "-var", "every", "1")
         rows = thermo_tables(log)[-1]
         assert rows[-1]["Step"] == 1 and rows[-1]["f_couple[3]"] > 0
         assert rows[-1]["f_evap"] >= 20  # the top rows went at step 1

@@ -397,12 +397,17 @@ void RestartRecord::write_file(std::FILE *fp) const {
   std::fwrite(list, sizeof(double), kValues, fp);
 }
 
+std::string frameless_run_warning(int output_every, std::int64_t run_exchanges, std::int64_t run_steps, int every) {
+  if (output_every <= 0 || run_exchanges > 0) return "";
+  return "Fix hybrid/mpm: this run of " + std::to_string(run_steps) + " step(s) had no exchange (every " +
+         std::to_string(every) + "), so it wrote no output frame; frames are those of exchanges: make the run " +
+         "reach a multiple of every, or lower every";
+}
+
 std::int64_t next_exchange_step(const ExchangeOutlook &o) {
   const std::int64_t next = o.now + o.every;
-  if (o.forced_output || o.rezone_next || o.restart_file) return -1;
-  if (next <= o.last_step) return next;
-  if (o.output_frames && o.last_step > o.now) return o.last_step;    // the end-of-run frame
-  return -1;
+  if (o.rezone_next || o.restart_file || next > o.last_step) return -1;
+  return next;
 }
 
 std::string RestartRecord::take_cell(double &input_cell) const {

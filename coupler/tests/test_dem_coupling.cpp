@@ -184,6 +184,16 @@ TEST(DemCoupling, RezoneTotalsAndAtomLimits) {
   EXPECT_FALSE(coupler::output_frame_due(5, 11, false));
   EXPECT_TRUE(coupler::output_frame_due(5, 11, true));
   EXPECT_FALSE(coupler::output_frame_due(0, 0, true));
+  // a run of steps 0-67 exchanging every 10: its last exchange is at step 60
+  EXPECT_FALSE(coupler::last_exchange_of_run(50, 10, 67));
+  EXPECT_TRUE(coupler::last_exchange_of_run(60, 10, 67));
+  EXPECT_FALSE(coupler::last_exchange_of_run(60, 10, 70));
+  EXPECT_TRUE(coupler::last_exchange_of_run(70, 10, 70));
+  // a run with no exchange writes no frame, and says so
+  EXPECT_EQ(coupler::frameless_run_warning(5, 1, 10, 10), "");
+  EXPECT_EQ(coupler::frameless_run_warning(0, 0, 3, 10), "");
+  const std::string frameless = coupler::frameless_run_warning(5, 0, 3, 10);
+  EXPECT_NE(frameless.find("3 step(s) had no exchange (every 10)"), std::string::npos) << frameless;
 }
 
 TEST(DemCoupling, RestartRecordKeepsTheCellTheRunStartedWith) {
@@ -312,18 +322,15 @@ TEST(DemCoupling, NextExchangeIsAnnouncedOnlyWhenCertain) {
   coupler::ExchangeOutlook o;
   o.now = 100, o.last_step = 200, o.every = 10;
   EXPECT_EQ(coupler::next_exchange_step(o), 110);
-  for (bool coupler::ExchangeOutlook::*flag : {&coupler::ExchangeOutlook::forced_output,
-                                               &coupler::ExchangeOutlook::rezone_next,
+  for (bool coupler::ExchangeOutlook::*flag : {&coupler::ExchangeOutlook::rezone_next,
                                                &coupler::ExchangeOutlook::restart_file}) {
     coupler::ExchangeOutlook held = o;
     held.*flag = true;
     EXPECT_EQ(coupler::next_exchange_step(held), -1);
   }
-  o.now = 195;    // the run ends before the next exchange step
-  EXPECT_EQ(coupler::next_exchange_step(o), -1);
-  o.output_frames = true;    // unless its end is an output frame's exchange
+  o.now = 190;    // the run's last step is the next exchange's
   EXPECT_EQ(coupler::next_exchange_step(o), 200);
-  o.now = 200;
+  o.now = 195;    // the run ends before the next exchange step
   EXPECT_EQ(coupler::next_exchange_step(o), -1);
 }
 

@@ -62,7 +62,7 @@ Fix *FixHybridMPMLiggghts::creator(LAMMPS *lmp, int narg, char **arg)
 FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), last_ack(new coupler::StepAck), ledger(new coupler::EnergyLedger),
     run_log(new coupler::DemRunLog), weight(NULL), support(NULL), atom_stress(NULL), stress_id(NULL), exchanges(0),
-    coupled_grains(0), last_step(0), last_output_step(-1), vector_step(-1), converted(false), rezone_pending(false),
+    coupled_grains(0), last_step(0), vector_step(-1), converted(false), rezone_pending(false),
     ledger_started(false), timestep_checked(false), restored(false), state_loaded(false), restart_exchanges(0),
     new_grain_mask(1), rezone_source(0), polydispersity(0.0), continuum_start(0.0),
     clock(new coupler::CouplingClock), fewest_steps_warned(coupler::kBig)
@@ -317,7 +317,7 @@ void FixHybridMPMLiggghts::end_of_step()
     run_log->charge(coupler::kTimeOutput, MPI_Wtime() - log_start);
   }
   if (step % opt->every != 0) return;
-  exchange(false);
+  exchange();
   // the zone oracle right after this exchange (the MPM process did not advance past it), unless
   // the run ends here: the next run's setup reorders the atoms
   if (opt->oracle_after(step, update->laststep, converted))
@@ -326,8 +326,10 @@ void FixHybridMPMLiggghts::end_of_step()
 
 void FixHybridMPMLiggghts::post_run()
 {
-  if (link && opt->continuum.output_every > 0 && last_output_step != update->ntimestep) exchange(true);
   last_step = update->ntimestep;
+  const std::string frameless = coupler::frameless_run_warning(opt->continuum.output_every,
+                                                               run_log->run_timing().exchanges, update->nsteps, opt->every);
+  if (comm->me == 0 && link && !frameless.empty()) error->warning(FLERR, kept(frameless));
   log_rezone_summary(true);
   if (link) say("fix hybrid/mpm: " + std::to_string(exchanges) + " exchange(s) with the MPM process so far");
   if (link) print_timing_breakdown();

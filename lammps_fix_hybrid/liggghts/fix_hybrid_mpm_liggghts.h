@@ -85,7 +85,7 @@ class FixHybridMPMLiggghts : public Fix {
   double **atom_stress;                            // per-atom stress*volume stored for the next rezone
   std::vector<int> supported;                      // local atoms with a support acceleration
   char *stress_id;                                 // compute stress/atom for the Love-Weber stress
-  bigint exchanges, coupled_grains, last_step, last_output_step, vector_step;
+  bigint exchanges, coupled_grains, last_step, vector_step;
   bool converted, rezone_pending, ledger_started;
   bool timestep_checked;          // the DEM time step was checked (and logged) once
   bool restored, state_loaded;    // restarted after the conversion: the MPM process loads its state
@@ -110,11 +110,11 @@ class FixHybridMPMLiggghts : public Fix {
   void check_insertions();
   void rezone(int source);
   bool make_grain(const coupler::PlannedGrain<3> &planned);
-  void exchange(bool force_output);
+  void exchange();
   void log_rezone_summary(bool end_of_run);    // the rezones since the last thermo output, or of the run
   void print_timing_breakdown();              // at the end of a run, before LIGGGHTS's own
   double dem_time(bigint step) const;
-  double next_exchange_time(bool force_output) const;
+  double next_exchange_time() const;
   coupler::StepHeader step_header(int kind) const;
   coupler::DemGrains grains() const;
   coupler::GrainArrays arrays() const;    // weight, support, atom_stress

@@ -63,29 +63,28 @@ coupler::StepHeader FixHybridMPMLiggghts::step_header(int kind) const
 
 // the time of the next exchange if it is certain now (the MPM process advances to it while
 // LIGGGHTS computes its steps), else -1: the run ends first, or a rezone comes first
-double FixHybridMPMLiggghts::next_exchange_time(bool force_output) const
+double FixHybridMPMLiggghts::next_exchange_time() const
 {
   coupler::ExchangeOutlook o;
   o.now = update->ntimestep, o.last_step = update->laststep, o.every = opt->every;
-  o.forced_output = force_output;
   o.rezone_next = opt->oracle_after(o.now, update->laststep, converted);
   const bigint restart_step = output->*member(liggghts_private::OutputNextRestart{});
   o.restart_file = output->*member(liggghts_private::OutputRestartFlag{}) && restart_step >= o.now && restart_step < o.now + opt->every;
-  o.output_frames = opt->continuum.output_every > 0;
   const bigint next = coupler::next_exchange_step(o);
   return next < 0 ? -1.0 : dem_time(next);
 }
 
-void FixHybridMPMLiggghts::exchange(bool force_output)
+void FixHybridMPMLiggghts::exchange()
 {
   const double start = MPI_Wtime();
   ledger->close_dem_bracket(grain_energy());
   const coupler::DemGrains g = grains();
   const std::vector<int> index = coupler::coupled_grains(g, [&](const double *xi) { return zone_of(xi); });
   coupler::StepHeader h = step_header(coupler::kStepCouple);
-  h.output = coupler::output_frame_due(opt->continuum.output_every, exchanges, force_output) ? 1 : 0;
-  h.next_time = next_exchange_time(force_output);
-  if (h.output) last_output_step = update->ntimestep;
+  // every N exchanges, and the run's last: the file holds each run's last coupled state
+  const bool run_ends = coupler::last_exchange_of_run(update->ntimestep, opt->every, update->laststep);
+  h.output = coupler::output_frame_due(opt->continuum.output_every, exchanges, run_ends) ? 1 : 0;
+  h.next_time = next_exchange_time();
   auto frame = [&] { return coupler::frame_records(grains(), atom->tag, [&](const double *x) { return zone_of(x); }); };
   coupler::StepAck ack;
   coupler::ExchangeTally tally;

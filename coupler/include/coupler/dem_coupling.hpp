@@ -96,11 +96,23 @@ RezoneAftermath rezone_aftermath(const DemGrains &g, const GrainRules &rules, st
 RezoneReport rezone_report(std::int64_t step, const RezoneCounts &counts, const StepAck &ack, double weight,
                            const RezoneAftermath &after);
 
-/// Whether an exchange sends an output frame: every output_every-th exchange (from the first,
-/// exchange count `exchanges` before it) and the forced one at the end of a run; never for 0.
-inline bool output_frame_due(int output_every, std::int64_t exchanges, bool forced) {
-  return output_every > 0 && (forced || exchanges % output_every == 0);
+/// Whether the exchange at step `now` is its run's last: the next one would come after the run's
+/// last step.
+inline bool last_exchange_of_run(std::int64_t now, int every, std::int64_t last_step) {
+  return now + every > last_step;
 }
+
+/// Whether an exchange sends an output frame: every output_every-th exchange (from the first,
+/// exchange count `exchanges` before it) and the last exchange of every run; never for 0. The
+/// run's last frame is that of an exchange of the coupling's own cadence, not an extra exchange
+/// at the run's end: writing frames must not change the run (docs/design.md section 2.3).
+inline bool output_frame_due(int output_every, std::int64_t exchanges, bool run_ends) {
+  return output_every > 0 && (run_ends || exchanges % output_every == 0);
+}
+
+/// The warning at the end of a run of `run_steps` steps that had no exchange (none of its steps a
+/// multiple of `every`), so wrote no output frame; "" when frames are off or it had one.
+std::string frameless_run_warning(int output_every, std::int64_t run_exchanges, std::int64_t run_steps, int every);
 
 /// Totals of grains plus points before and after a rezone (mass, momentum, angular momentum):
 /// the grains' (summed over the ranks) with the continuum's from the acknowledgement.
@@ -243,14 +255,11 @@ struct ExchangeOutlook {
   std::int64_t now = 0;
   std::int64_t last_step = 0;      ///< the run's last step
   int every = 1;                   ///< keyword every
-  bool forced_output = false;      ///< this is the end-of-run output frame's exchange
   bool rezone_next = false;        ///< the oracle's rezone follows this exchange
   bool restart_file = false;       ///< a restart file is written at a step in [now, now + every)
-  bool output_frames = false;      ///< the run writes output frames (its last step is then an exchange)
 };
-/// The step of the next exchange if it is certain now, else -1: not for the end-of-run frame, a
-/// rezone or a restart file before it (the MPM state must then be that of this exchange), nor
-/// when the run ends first, unless its end is an output frame's exchange.
+/// The step of the next exchange if it is certain now, else -1: not with a rezone or a restart
+/// file before it (the MPM state must then be that of this exchange), nor when the run ends first.
 std::int64_t next_exchange_step(const ExchangeOutlook &o);
 
 /// "fix hybrid/mpm: MPM state saved to|loaded from PATH (N material points)"
