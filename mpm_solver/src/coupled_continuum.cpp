@@ -174,8 +174,9 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   }
 
   // Cells whose material moves: a changed zone, material of the wrong kind for the zone
-  // (points that drifted into a discrete cell, grains into a continuum cell), or a hybrid cell
-  // whose grains drained out (kStarvedGrains).
+  // (points that drifted into a discrete cell, grains into a continuum cell), a hybrid cell
+  // whose grains drained out (kStarvedGrains), or a discrete cell whose grains came from a
+  // hybrid one lighter than their solid mass (kLightGrains).
   moving_.clear();
   std::vector<std::int64_t> slot(n, -1);
   for (std::size_t c = 0; c < n; ++c) {
@@ -184,7 +185,9 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     const bool stray = (next[c] == coupler::kDiscrete && points) || (next[c] == coupler::kContinuum && grains);
     const bool starved = next[c] == coupler::kHybrid && points &&
                          grain_mass[c] < coupler::kStarvedGrains * grain_share(coupler::kHybrid) * (grain_mass[c] + point_mass[c]);
-    if (next[c] == zones_[c] && !stray && !starved) continue;
+    const bool light = next[c] == coupler::kDiscrete && grains &&
+                       grain_mass[c] < coupler::kLightGrains * cs.grain_density * volume[c];
+    if (next[c] == zones_[c] && !stray && !starved && !light) continue;
     slot[c] = static_cast<std::int64_t>(moving_.size());
     MovingCell m;
     m.plan.cell = c;

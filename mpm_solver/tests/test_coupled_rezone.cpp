@@ -2,6 +2,7 @@
 // docs/design.md section 5.6): where a cell's material goes when its new zone cannot hold it.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -38,19 +39,23 @@ struct Rezone {
   std::map<std::uint64_t, coupler::GrainSums<2>> sums;
 };
 
-/// Four resting grains of `mass` in all (carried at their solid mass) at the quarter points of a cell.
-void add_grains(Rezone& r, const coupler::GridGeometry<2>& grid, std::uint64_t cell, double mass) {
-  r.volumes.push_back({cell, mass / kGrainDensity, mass});
+/// Four grains of `mass` in all at the quarter points of a cell, moving at `velocity`, each
+/// carrying the share `carried` of its solid mass (its weight).
+void add_grains(Rezone& r, const coupler::GridGeometry<2>& grid, std::uint64_t cell, double mass,
+                const std::array<double, 4>& carried = {1, 1, 1, 1},
+                const Eigen::Vector2d& velocity = Eigen::Vector2d::Zero()) {
+  r.volumes.push_back({cell, mass / kGrainDensity, 0.25 * mass * (carried[0] + carried[1] + carried[2] + carried[3])});
   const Eigen::Vector2d centre = coupler::cell_center<2>(grid, coupler::cell_coords<2>(grid, cell));
   coupler::GrainSums<2>& s = r.sums[cell];
   s.carried.moments.cell = s.solid.moments.cell = cell;
+  int i = 0;
   for (double dx : {-0.25, 0.25})
     for (double dy : {-0.25, 0.25}) {
       const Eigen::Vector2d x = centre + kCell * Eigen::Vector2d(dx, dy);
       const double e = 0.5 * std::pow(kCell / 6, 2);  // a disk's own inertia per mass, r^2/2
-      for (auto* body : {&s.carried, &s.solid})
-        body->add_body(x, Eigen::Vector2d::Zero(), mass / 4, coupler::Spin<2>::Zero(), e, Eigen::Matrix2d::Zero(),
-                       centre);
+      s.carried.add_body(x, velocity, carried[i++] * mass / 4, coupler::Spin<2>::Zero(), e, Eigen::Matrix2d::Zero(),
+                         centre);
+      s.solid.add_body(x, velocity, mass / 4, coupler::Spin<2>::Zero(), e, Eigen::Matrix2d::Zero(), centre);
     }
 }
 
@@ -197,6 +202,65 @@ TEST(CoupledRezone, HybridCellDrainedOfItsGrainsMakesThemAgain) {
   EXPECT_EQ(planned(0.6 * weight * packed), 0) << "a few left: still left alone";
   continuum.complete_rezone({});
   EXPECT_EQ(planned(0.3 * weight * packed), 2) << "most drained out: grains made again";
+}
+
+// Grains made in a hybrid cell carry their weight's share of their mass; when they flow on into a
+// discrete cell (the band over a silo's orifice, into the discrete region around it) no zone
+// changes, and they left the silo light. A discrete cell whose grains carry less than
+// kLightGrains of their solid mass is planned, its grains get their full mass and the points of
+// the hybrid cell next to it give it: mass and momentum exact. Grains at their solid mass, or
+// short of it by round-off, are left alone.
+TEST(CoupledRezone, LightGrainsInADiscreteCellTakeTheirFullMassFromThePointsNearby) {
+  const coupler::Hello hello = square_box();
+  mpm::CoupledContinuum<2> continuum(hello);
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  auto cell_at = [&](int i, int j) {
+    return coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)));
+  };
+  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+  const std::uint64_t band = cell_at(5, 6), below = cell_at(5, 5);
+  zones[band] = coupler::kHybrid;
+  const double packed = 0.8 * kSolidContent, weight = hello.continuum.grain_weight;
+  Rezone start;
+  add_grains(start, grid, band, packed);
+  const double points = rezone(continuum, zones, start).mass;
+  ASSERT_NEAR(points, (1 - weight) * packed, 1e-12 * packed);
+
+  auto planned = [&](double carried_share) {  // is `below` planned, its grains carrying this share of their mass
+    Rezone now;
+    add_grains(now, grid, band, packed, {weight, weight, weight, weight});
+    now.volumes.push_back({below, packed / kGrainDensity, carried_share * packed});
+    bool found = false;
+    for (const auto& plan : continuum.plan_rezone(0.0, coupler::kZonesGiven, zones, coupler::OracleSettings{}, {},
+                                                  {now.volumes}))
+      found = found || plan.cell == below;
+    continuum.complete_rezone({});
+    return found;
+  };
+  EXPECT_FALSE(planned(1.0)) << "grains at their solid mass";
+  EXPECT_FALSE(planned(1.0 - 1e-9)) << "round-off";
+  EXPECT_TRUE(planned(1.0 - 0.5 / 30)) << "one grain of half weight among 30";
+
+  // one of its four grains came at half weight, falling at 0.3 m/s with the others
+  Rezone light;
+  add_grains(light, grid, band, packed, {weight, weight, weight, weight});
+  add_grains(light, grid, below, packed, {0.5, 1, 1, 1}, Eigen::Vector2d(0.0, -0.3));
+  const auto plans = continuum.plan_rezone(0.0, coupler::kZonesGiven, zones, coupler::OracleSettings{}, {},
+                                           {light.volumes});
+  ASSERT_EQ(plans.size(), 1u);
+  EXPECT_EQ(plans[0].cell, below);
+  EXPECT_EQ(plans[0].make_grains, 0) << "the grains are there: they only take their mass";
+  const auto corrections = continuum.complete_rezone({{light.sums.at(below)}});
+  ASSERT_EQ(corrections.size(), 1u);
+  EXPECT_EQ(corrections[0].weight, 1.0);
+  EXPECT_EQ(corrections[0].remove, 0);
+  EXPECT_NEAR(corrections[0].mass_factor, 1.0, 1e-12) << "the grains at their solid mass";
+  const coupler::StepAck after = continuum.totals(0);
+  EXPECT_EQ(after.rests_moved, 1);
+  EXPECT_NEAR(after.mass, points - 0.125 * packed, 1e-12 * packed) << "the points gave what the grains took";
+  // the mass came at the grains' velocity: grains plus points keep their momentum
+  EXPECT_NEAR(after.momentum[1], -0.3 * -0.125 * packed, 1e-12 * packed);
+  EXPECT_NEAR(after.momentum[0], 0.0, 1e-12 * packed);
 }
 
 }  // namespace

@@ -179,6 +179,14 @@ inline constexpr double kHeaviestGrains = 1.2;
 /// continuum falls through the band into the discrete region (docs/design.md 5.6).
 inline constexpr double kStarvedGrains = 0.5;
 
+/// A discrete cell whose grains carry less than this share of their solid mass holds grains that
+/// were hybrid (weight < 1) and moved into it: a rezone gives them their full mass from the points
+/// nearby. Nothing else does, since the cell keeps its zone: over a silo's orifice grains made in
+/// the hybrid band flowed down through the discrete region at half weight and left the silo light
+/// (the 90 d 2D silo after 2 s: grains leaving at 0.989 of their solid mass, 1.000 with this;
+/// docs/design.md 5.6). One grain of half weight among the 30 or so of a cell is under it.
+inline constexpr double kLightGrains = 0.99;
+
 /// The heaviest a rezone makes grains, as a multiple of their solid share, where a cell's surplus
 /// of material finds no points near to take it (the continuum is nearly gone).
 inline constexpr double kHeaviestKept = 2.0;
