@@ -232,26 +232,28 @@ def test_handoff_cycle_in_a_bed_at_rest_releases_little_energy(tmp_path, hybrid_
 
 # ---- column collapse with adaptive zones (input_decks/column_collapse/dem_2d.lmp, hybrid 2) -----
 
-def material_distance(grains: dict, points: dict, dx: float, container_lo: np.ndarray, surface_packing: float,
-                      cells: np.ndarray) -> np.ndarray:
-    """Distance of the centres of `cells` (integer cell coordinates from container_lo) to the
-    nearest centre of a cell outside the material, minus dx/2, as the oracle measures it:
-    outside = packing fraction (grain area in the cell of its centre, over dx^2) below
-    surface_packing and no material point, or outside the container. Brute force."""
-    n = np.ceil((np.concatenate([grains["position"][:, :2], points["position"][:, :2]]).max(axis=0)
-                 - container_lo) / dx).astype(int) + 3
+def grid_cells(x: np.ndarray, origin: np.ndarray, dx: float) -> np.ndarray:
+    """The integer coordinates of the grid cells holding the points `x` (2D)."""
+    return np.floor((x[:, :2] - origin[:2]) / dx).astype(int)
+
+
+def material_distance(grains: dict, points: dict, origin: np.ndarray, dx: float, container_lo: np.ndarray,
+                      surface_packing: float, cells: np.ndarray) -> np.ndarray:
+    """Distance of the centres of `cells` (integer coordinates of the MPM grid's cells, from its
+    `origin`) to the nearest centre of a cell outside the material, minus dx/2, as the oracle
+    measures it: outside = packing fraction (grain area in the cell of its centre, over dx^2)
+    below surface_packing and no material point, or a centre outside the container (beyond
+    container_lo). Brute force."""
+    gc, pc = grid_cells(grains["position"], origin, dx), grid_cells(points["position"], origin, dx)
+    n = np.concatenate([gc, pc, cells]).max(axis=0) + 3
     area = np.zeros(n)
-    gc = np.floor((grains["position"][:, :2] - container_lo) / dx).astype(int)
     ok = (gc >= 0).all(axis=1)
     np.add.at(area, (gc[ok, 0], gc[ok, 1]), np.pi * grains["radius"][ok] ** 2)
     material = area / dx ** 2 >= surface_packing
-    pc = np.floor((points["position"][:, :2] - container_lo) / dx).astype(int)
     material[pc[:, 0], pc[:, 1]] = True
-    ii, jj = np.nonzero(~material)
-    outside = np.stack([ii, jj], axis=1)
-    # the container's walls: the cells just beyond them count as outside
-    walls = np.array([[-1, j] for j in range(-1, n[1])] + [[i, -1] for i in range(n[0])])
-    outside = np.concatenate([outside, walls])
+    centre = origin[:2, None, None] + dx * (np.indices(n) + 0.5)
+    material &= (centre >= np.asarray(container_lo)[:, None, None]).all(axis=0)
+    outside = np.argwhere(~material)
     d = np.sqrt(((cells[:, None, :] - outside[None, :, :]) ** 2).sum(axis=2)).min(axis=1)
     return (d - 0.5) * dx
 
@@ -295,9 +297,11 @@ def test_discrete_zone_follows_the_free_surface_of_a_collapsing_column(tmp_path,
     # the continuum came down with the free surface (the column's height halves)
     assert last["position"][cont1, 1].max() < first["position"][cont0, 1].max() - 3 * dx
     grains = mpm_results.read_grains(tmp_path / "hybrid" / "frames", k)
-    lo = np.zeros(2)  # the container: back wall x = 0, floor y = 0
-    cells = np.unique(np.floor((last["position"][cont1, :2] - lo) / dx).astype(int), axis=0)
-    dist = material_distance(grains, last, dx, lo, 0.3, cells)
+    # the cells of the MPM grid (laid from the grains: its origin need not be the container's)
+    assert frames.grid is not None and frames.grid["dx"] == pytest.approx(dx)
+    origin = frames.grid["origin"]
+    cells = np.unique(grid_cells(last["position"][cont1], origin, dx), axis=0)
+    dist = material_distance(grains, last, origin, dx, np.zeros(2), 0.3, cells)  # back wall x = 0, floor y = 0
     print(f"continuum cells in frame {k} of {len(frames)}: {len(cells)}, nearest to the surface or walls "
           f"{dist.min() / dx:.2f} cells; "
           f"zones first {zones[0]}, last {zones[-1]}; runout {res.runout:.2f}")
