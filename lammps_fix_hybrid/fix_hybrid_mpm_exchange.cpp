@@ -289,6 +289,6 @@ int FixHybridMPM::maxsize_restart()
   return coupler::GrainArrays::kRestartValues;
 }
 
-// end_of_step and post_run (fix_hybrid_mpm.cpp) exchange in 2D and 3D
+// end_of_step (fix_hybrid_mpm.cpp) exchanges in 2D and 3D
 template void FixHybridMPM::exchange<2>();
 template void FixHybridMPM::exchange<3>();
