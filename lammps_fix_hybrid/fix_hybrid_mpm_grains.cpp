@@ -174,6 +174,8 @@ void FixHybridMPM::grain_defaults()
   // spread, type and groups of the grains there are
   const coupler::GroupGrains gg = coupler::group_grains(grains(), atom->type, atom->ntypes, domain->dimension, world);
   new_grain_mask = coupler::apply_group_defaults(*opt, gg, groupbit, polydispersity);
+  const std::string density = coupler::density_problem(*opt, gg, domain->dimension);
+  if (!density.empty()) error->all(FLERR, "Fix hybrid/mpm: " + density);
 }
 
 /* ----------------------------------------------------------------------

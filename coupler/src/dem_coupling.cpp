@@ -7,6 +7,7 @@
 #include <map>
 
 #include "coupler/conversion.hpp"
+#include "coupler/oracle.hpp"
 #include "coupler/text.hpp"
 #include "coupler/zones.hpp"
 
@@ -214,32 +215,48 @@ Hello make_hello(const FixOptions &options, const std::string &host, const std::
   return hello;
 }
 
+namespace {
+double volume_in(int dimension, double radius) {
+  return dimension == 2 ? grain_volume<2>(radius) : grain_volume<3>(radius);
+}
+}    // namespace
+
 GroupGrains group_grains(const DemGrains &g, const int *type, int ntypes, int dimension, MPI_Comm comm) {
-  constexpr double kPi = 3.14159265358979323846;
-  double sums[3] = {0, 0, 0}, range[2] = {-1e300, -1e300};    // -min diameter, max diameter
+  // sums: diameters, solid masses, volumes; extremes: -min and max diameter, -min and max
+  // solid density of the grains of weight 1
+  double sums[3] = {0, 0, 0}, extremes[4] = {-1e300, -1e300, -1e300, -1e300};
   int mask = ~0, smallest = ntypes + 1;
-  std::int64_t n = 0;
+  std::int64_t counts[2] = {0, 0};    // grains, grains with a weight below 1
   for (int i = 0; i < g.n; i++) {
     if (!g.coupled(i)) continue;
-    const double r = g.radius[i];
+    const double r = g.radius[i], solid_mass = g.rmass[i] / std::max(g.weight[i], 1e-300), volume = volume_in(dimension, r);
     sums[0] += 2.0 * r;
-    sums[1] += g.rmass[i] / std::max(g.weight[i], 1e-300);
-    sums[2] += dimension == 2 ? kPi * r * r : 4.0 / 3.0 * kPi * r * r * r;
-    range[0] = std::max(range[0], -2.0 * r);
-    range[1] = std::max(range[1], 2.0 * r);
+    sums[1] += solid_mass;
+    sums[2] += volume;
+    extremes[0] = std::max(extremes[0], -2.0 * r);
+    extremes[1] = std::max(extremes[1], 2.0 * r);
+    if (g.weight[i] < 1.0) {
+      counts[1]++;
+    } else {
+      extremes[2] = std::max(extremes[2], -solid_mass / volume);
+      extremes[3] = std::max(extremes[3], solid_mass / volume);
+    }
     mask &= g.mask[i];
     smallest = std::min(smallest, type[i]);
-    n++;
+    counts[0]++;
   }
   GroupGrains gg;
-  double all[3], range_all[2];
+  double all[3], extremes_all[4];
+  std::int64_t counts_all[2];
   MPI_Allreduce(sums, all, 3, MPI_DOUBLE, MPI_SUM, comm);
-  MPI_Allreduce(range, range_all, 2, MPI_DOUBLE, MPI_MAX, comm);
+  MPI_Allreduce(extremes, extremes_all, 4, MPI_DOUBLE, MPI_MAX, comm);
   MPI_Allreduce(&mask, &gg.common_mask, 1, MPI_INT, MPI_BAND, comm);
   MPI_Allreduce(&smallest, &gg.smallest_type, 1, MPI_INT, MPI_MIN, comm);
-  MPI_Allreduce(&n, &gg.count, 1, MPI_INT64_T, MPI_SUM, comm);
+  MPI_Allreduce(counts, counts_all, 2, MPI_INT64_T, MPI_SUM, comm);
+  gg.count = counts_all[0], gg.weighted = counts_all[1];
   gg.diameter_sum = all[0], gg.solid_mass_sum = all[1], gg.volume_sum = all[2];
-  gg.dmin = -range_all[0], gg.dmax = range_all[1];
+  gg.dmin = -extremes_all[0], gg.dmax = extremes_all[1];
+  if (gg.count > gg.weighted) gg.density_min = -extremes_all[2], gg.density_max = extremes_all[3];
   return gg;
 }
 
@@ -255,6 +272,25 @@ int apply_group_defaults(FixOptions &options, const GroupGrains &gg, int groupbi
   polydispersity = std::min(0.45, (gg.dmax - gg.dmin) / (gg.dmax + gg.dmin));
   if (options.grain_type == 0) options.grain_type = gg.smallest_type;
   return gg.common_mask | 1 | groupbit;
+}
+
+std::string density_problem(const FixOptions &options, const GroupGrains &gg, int dimension) {
+  // one grain at (1 - tolerance) of the solid density would count as light (kLightGrains)
+  const double tolerance = 1.0 - kLightGrains;
+  if (gg.weighted > 0 || gg.count == 0 || !(gg.volume_sum > 0)) return "";
+  const char *per = dimension == 2 ? "per unit area: mass over pi r^2" : "mass over 4/3 pi r^3";
+  if (gg.density_max > (1.0 + tolerance) * gg.density_min)
+    return "the group's grains have solid densities from " + general(gg.density_min, 4) + " to " +
+           general(gg.density_max, 4) + " (" + per + "), but grains and material points convert at one solid "
+           "density (a rezone gives every grain it touches that density's mass): give the group's grains one "
+           "density" + std::string(dimension == 2 ? " (a 2D deck: set density/disc, which is per unit area; "
+                                                    "set density gives disks a sphere's mass)" : "");
+  const double own = gg.solid_mass_sum / gg.volume_sum;
+  if (options.density_given && std::abs(options.continuum.grain_density / own - 1.0) > tolerance)
+    return "grain_density " + general(options.continuum.grain_density, 4) + " is not the group's grains' own " +
+           "solid density " + general(own, 4) + " (" + per + "); grains and material points convert at one " +
+           "solid density: drop grain_density (the fix takes the grains') or give the grains that density";
+  return "";
 }
 
 namespace {
@@ -442,9 +478,7 @@ std::string gravity_change_problem(const double then[3], const double now[3]) {
 
 std::string apply_deck_material(FixOptions &options, DeckContact deck) {
   const CalibratedMaterial &m = *options.material;
-  constexpr double kPi = 3.14159265358979323846;
-  const double r = 0.5 * options.continuum.grain_diameter;
-  deck.mean_mass = options.continuum.grain_density * (deck.dimension == 2 ? kPi * r * r : 4.0 / 3.0 * kPi * r * r * r);
+  deck.mean_mass = options.continuum.grain_density * volume_in(deck.dimension, 0.5 * options.continuum.grain_diameter);
   const std::string mismatch = contact_mismatch(m, deck);
   if (!mismatch.empty())
     return "Fix hybrid/mpm: material " + m.path + " was calibrated for another contact law (" + mismatch +

@@ -97,6 +97,44 @@ TEST(DemCoupling, GroupDefaultsOverTheRanks) {
   EXPECT_DOUBLE_EQ(polydispersity, 1.0 / 3.0);
 }
 
+TEST(DemCoupling, GrainsAndPointsConvertAtOneSolidDensity) {
+  // 2D disks of radii 1 and 1.5 mm on every rank; rank 1 (if any) holds the heavier one
+  const double pi = 3.14159265358979323846, rho = 2500.0;
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  Atoms a(2);
+  a.radius = {0.001, 0.0015};
+  auto disks = [&](double per_area) {
+    for (int i = 0; i < 2; i++) a.rmass[i] = a.weight[i] * per_area * pi * a.radius[i] * a.radius[i];
+  };
+  auto problem = [&](const coupler::FixOptions &given) {
+    coupler::FixOptions opt = given;
+    double polydispersity = 0.0;
+    const coupler::GroupGrains gg = coupler::group_grains(a.grains(2), a.type.data(), 1, 2, MPI_COMM_WORLD);
+    coupler::apply_group_defaults(opt, gg, 2, polydispersity);
+    return coupler::density_problem(opt, gg, 2);
+  };
+  coupler::FixOptions defaults, given;
+  given.density_given = true;
+  disks(rho);
+  EXPECT_EQ(problem(defaults), "");
+  given.continuum.grain_density = 1.005 * rho;    // within the light-grain rule's 1 %
+  EXPECT_EQ(problem(given), "");
+  given.continuum.grain_density = 1.02 * rho;
+  EXPECT_NE(problem(given).find("grain_density 2550 is not the group's grains' own solid density 2500"),
+            std::string::npos) << problem(given);
+  // a 2D deck's `set density`: disks get a sphere's mass, so their density per area grows with r
+  for (int i = 0; i < 2; i++) a.rmass[i] = rho * 4.0 / 3.0 * pi * std::pow(a.radius[i], 3);
+  EXPECT_NE(problem(defaults).find("set density/disc"), std::string::npos) << problem(defaults);
+  // two densities on two ranks: the spread is over all ranks
+  disks(rank == 1 ? 1.1 * rho : rho);
+  EXPECT_EQ(problem(defaults).empty(), ranks() == 1) << problem(defaults);
+  // once grains carry shares (a coupled state, e.g. after a restart), masses are the coupling's
+  a.weight[0] = 0.5;
+  for (int i = 0; i < 2; i++) a.rmass[i] = rho * 4.0 / 3.0 * pi * std::pow(a.radius[i], 3);
+  EXPECT_EQ(problem(given), "");
+}
+
 TEST(DemCoupling, ZoneCountsAndEmptyRegions) {
   const double lo[3] = {0, 0, 0}, hi[3] = {0.1, 0.1, 0.1};
   const auto grid = coupler::padded_grid<3>(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.1, 0.1, 0.1), 0.01);

@@ -218,6 +218,8 @@ void FixHybridMPMLiggghts::connect()
 {
   const coupler::GroupGrains gg = coupler::group_grains(grains(), atom->type, atom->ntypes, 3, world);
   new_grain_mask = coupler::apply_group_defaults(*opt, gg, groupbit, polydispersity);
+  const std::string density = coupler::density_problem(*opt, gg, 3);
+  if (!density.empty()) fail(density);
   if (opt->material) apply_material();
   // the grid: the fix line's cell, or one chosen from the grains (and the oracle's defaults from it)
   std::string problem;

@@ -140,6 +140,10 @@ struct GroupGrains {
   std::int64_t count = 0;
   double diameter_sum = 0.0, solid_mass_sum = 0.0, volume_sum = 0.0;
   double dmin = 0.0, dmax = 0.0;
+  /// the least and largest solid density of a grain (mass over weight, over pi r^2 in 2D,
+  /// 4/3 pi r^3 in 3D); grains with a weight below 1 (`weighted`) are left out
+  double density_min = 0.0, density_max = 0.0;
+  std::int64_t weighted = 0;
   int common_mask = ~0;    ///< the group bits every grain of the group has
   int smallest_type = 0;
 };
@@ -148,6 +152,12 @@ GroupGrains group_grains(const DemGrains &g, const int *type, int ntypes, int di
 /// The options' defaults from the group's grains (mean diameter, solid density unless given,
 /// the new grains' type unless given); returns the new grains' mask and sets `polydispersity`.
 int apply_group_defaults(FixOptions &options, const GroupGrains &gg, int groupbit, double &polydispersity);
+/// An error message if the group's grains do not share one solid density, or if the fix line's
+/// grain_density is not theirs; "" if they agree. Grains and points convert at one solid
+/// density (docs/design.md 5.6): a rezone gives every grain it touches that density's mass.
+/// Checked only while no grain has a weight below 1 (the grains as the deck made them: a
+/// coupled state's light grains are not a deck's mistake).
+std::string density_problem(const FixOptions &options, const GroupGrains &gg, int dimension);
 
 /// The index of the first of `n` regions that holds no cell centre of the box (match(k, x):
 /// region k holds point x), -1 if every one holds one: such a region converts nothing and is a
