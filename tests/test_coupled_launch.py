@@ -517,6 +517,32 @@ def test_cell_larger_than_the_box_is_refused_at_the_handshake(tmp_path, hybrid_p
     assert elapsed < STOP_WITHIN
 
 
+@pytest.mark.parametrize("case, message", [
+    # this 2D deck's `set density` gives its disks a sphere's mass: 4/3 r rho per unit area; one disk
+    # shrunk by `set diameter` keeps its mass, 1 / 0.8^2 the others' per unit area
+    ("mixed", "ERROR: Fix hybrid/mpm: the group's grains have solid densities from 3.333 to 5.208 (per unit area: "
+              "mass over pi r^2), but grains and material points convert at one solid density"),
+    ("given", "ERROR: Fix hybrid/mpm: grain_density 2500 is not the group's grains' own solid density 3.333 "
+              "(per unit area: mass over pi r^2)"),
+])
+def test_grains_of_another_solid_density_are_refused(tmp_path, hybrid_programs, case, message):
+    def edit(text: str) -> str:
+        if case == "mixed":
+            out = text.replace("set             type 1 density 2500\n",
+                               "set             type 1 density 2500\nset             atom 1 diameter 0.0016\n")
+            assert out != text
+            return out
+        return replace_fix_line(text, "cell 0.01 grain_density 2500")
+    proc, elapsed = launch("-np", "2", str(deck_copy(tmp_path, edit)), "-log", "none", "-var", "nsteps", "20",
+                           timeout=60)
+    text = output(proc)
+    assert proc.returncode != 0, text
+    assert message in text, text
+    if case == "mixed":
+        assert "set density/disc" in text, text
+    assert elapsed < STOP_WITHIN
+
+
 def test_unwritable_output_directory_is_a_clear_error(tmp_path, hybrid_programs):
     blocker = tmp_path / "file"
     blocker.write_text("a file where the output directory should go")

@@ -72,7 +72,9 @@ def sub(pattern: str, new: str):
      "calibration)"),
     (sub(r"^pair_style .*$\n^pair_coeff .*$", "pair_style soft 0.004\npair_coeff * * 1.0"),
      "pair style soft is not a granular one: use pair_style gran model hooke (or hertz) tangential history"),
-], ids=["2d", "material_of_another_law", "pair_style"])
+    (sub(r"youngs 1.0e5$", "youngs 1.0e5 grain_density 2600"),
+     "grain_density 2600 is not the group's grains' own solid density 2500 (mass over 4/3 pi r^3)"),
+], ids=["2d", "material_of_another_law", "pair_style", "grain_density"])
 def test_liggghts_refuses_what_it_does_not_support_naming_it(tmp_path, liggghts_hybrid, edit, message):
     deck = edited_deck(tmp_path, edit)
     proc, elapsed = launch("--host", "liggghts", "-np", "2", str(deck), "-var", "nsteps", "20", "-log", "none",
