@@ -43,6 +43,15 @@ DEM run: the error against wall time as the continuum comes closer to the free s
 and the orifice's region (the third panel of the plot); --surface-depths moves it closer to the free
 surface only (fix keyword surface_depth), the floor and the orifice's region keeping the fix's depth.
 
+Cost on this 2-core machine: a size's settled silo is prepared once per machine (~/.cache/hybrid-
+granular) and its preparation is not timed, but it is long at 160 d: the pour alone is 289,106 steps of
+87,210 disks (5,732 s on 2026-11-27 while the test suite shared the cores), then chunks of 0.02 s (65-116
+s each) until the mean kinetic energy per grain is under 1e-5 m g d (1.5e-9 J; it rang between 3e-9 and
+3e-7 J over the first 8 chunks), then the trim and a second settle. With the DEM's 1 s of discharge
+(~43 min) and two hybrids, `--sizes 160` on a fresh machine needs 2 h or more alone (how long the settle
+rings is not known beforehand): start it first, with nothing else running (a test suite beside the
+preparation doubles it).
+
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--liggghts]
                             [--collapse-sizes 50,100,200]
                             [--depths 12,24] [--surface-depths 12] [--keep]
