@@ -215,12 +215,6 @@ Hello make_hello(const FixOptions &options, const std::string &host, const std::
   return hello;
 }
 
-namespace {
-double volume_in(int dimension, double radius) {
-  return dimension == 2 ? grain_volume<2>(radius) : grain_volume<3>(radius);
-}
-}    // namespace
-
 GroupGrains group_grains(const DemGrains &g, const int *type, int ntypes, int dimension, MPI_Comm comm) {
   // sums: diameters, solid masses, volumes; extremes: -min and max diameter, -min and max
   // solid density of the grains of weight 1
@@ -229,7 +223,7 @@ GroupGrains group_grains(const DemGrains &g, const int *type, int ntypes, int di
   std::int64_t counts[2] = {0, 0};    // grains, grains with a weight below 1
   for (int i = 0; i < g.n; i++) {
     if (!g.coupled(i)) continue;
-    const double r = g.radius[i], solid_mass = g.rmass[i] / std::max(g.weight[i], 1e-300), volume = volume_in(dimension, r);
+    const double r = g.radius[i], solid_mass = g.rmass[i] / std::max(g.weight[i], 1e-300), volume = grain_volume(dimension, r);
     sums[0] += 2.0 * r;
     sums[1] += solid_mass;
     sums[2] += volume;
@@ -478,7 +472,7 @@ std::string gravity_change_problem(const double then[3], const double now[3]) {
 
 std::string apply_deck_material(FixOptions &options, DeckContact deck) {
   const CalibratedMaterial &m = *options.material;
-  deck.mean_mass = options.continuum.grain_density * volume_in(deck.dimension, 0.5 * options.continuum.grain_diameter);
+  deck.mean_mass = options.continuum.grain_density * grain_volume(deck.dimension, 0.5 * options.continuum.grain_diameter);
   const std::string mismatch = contact_mismatch(m, deck);
   if (!mismatch.empty())
     return "Fix hybrid/mpm: material " + m.path + " was calibrated for another contact law (" + mismatch +

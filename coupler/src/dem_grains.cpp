@@ -9,7 +9,7 @@
 namespace coupler {
 
 double GrainRules::solid_mass(double radius) const {
-  return density * (dimension == 2 ? grain_volume<2>(radius) : grain_volume<3>(radius));
+  return density * grain_volume(dimension, radius);
 }
 
 void grain_totals(const DemGrains &g, double inertia, double out[7]) {

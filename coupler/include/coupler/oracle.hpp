@@ -53,6 +53,10 @@ double grain_volume(double radius) {
   constexpr double kPi = 3.14159265358979323846;
   return D == 2 ? kPi * radius * radius : 4.0 / 3.0 * kPi * radius * radius * radius;
 }
+/// The same for a dimension known at run time (a host's `domain->dimension`).
+inline double grain_volume(int dimension, double radius) {
+  return dimension == 2 ? grain_volume<2>(radius) : grain_volume<3>(radius);
+}
 
 /// Adds `volume` to the cell holding the grain centre x (the whole grain counts in the cell of
 /// its centre: cheap, additive, and exact on average over a cell). cell_volume is sized on
