@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <set>
 
 #include "coupler/conversion.hpp"
 #include "coupler/tuning.hpp"
@@ -11,6 +12,146 @@ namespace {
 
 template <int D>
 using Vec = Eigen::Matrix<double, D, 1>;
+
+/// Most Gauss-Seidel sweeps that push made grains off the old ones and each other
+/// (relax_candidates; each push is at most a fifth of a radius). A candidate still overlapped
+/// after them shrinks to fit, so the bound costs size, never an overlap.
+constexpr int kRelaxSweeps = 100;
+
+/// A grain in the candidates' way: centre and radius.
+template <int D>
+struct Obstacle {
+  Vec<D> x;
+  double radius;
+};
+
+/// A candidate being fitted: where it is now, where the template put it, its radius, which
+/// making cell (j) and which of its candidates (n), its cell's lower corner, what is near it.
+template <int D>
+struct Fitting {
+  Vec<D> x, home;
+  double radius;
+  std::size_t j, n;
+  Vec<D> cell_lo;
+  std::vector<std::size_t> obstacles, others;    // indices of obstacles and fitting candidates near
+};
+
+/// Indices of positions by the grid cell holding them. Positions off the grid are left out: the
+/// grid's padding cells keep them far from every candidate (candidates lie in the container).
+template <int D>
+class CellBins {
+ public:
+  explicit CellBins(const GridGeometry<D> &grid) : grid_(grid) {}
+  void add(const Vec<D> &x, std::size_t i) {
+    const Eigen::Matrix<int, D, 1> c = cell_of<D>(grid_, x);
+    if ((c.array() >= 0).all() && (c.array() < grid_.dims.array() - 1).all()) bins_[cell_index<D>(grid_, c)].push_back(i);
+  }
+  /// Calls f(i) for every position added within `distance` of x (and some farther).
+  template <class F>
+  void near(const Vec<D> &x, double distance, F &&f) const {
+    for_each_cell_within<D>(grid_, cell_of<D>(grid_, x), static_cast<int>(std::ceil(distance / grid_.dx)),
+                            [&](std::uint64_t cell) {
+                              const auto it = bins_.find(cell);
+                              if (it != bins_.end())
+                                for (std::size_t i : it->second) f(i);
+                            });
+  }
+
+ private:
+  const GridGeometry<D> &grid_;
+  std::map<std::uint64_t, std::vector<std::size_t>> bins_;
+};
+
+/// Every rank's atoms (of any group) within `distance` of a candidate's cell, the same list in
+/// the same order on every rank (collective).
+template <int D>
+std::vector<Obstacle<D>> obstacles_near(const GridGeometry<D> &grid, const DemGrains &g,
+                                        const std::set<std::uint64_t> &candidate_cells, double distance,
+                                        MPI_Comm comm) {
+  std::vector<double> mine;
+  for (int i = 0; i < g.n; i++) {
+    const Vec<D> xi = Eigen::Map<const Vec<D>>(g.x[i]);
+    const int reach = static_cast<int>(std::ceil((g.radius[i] + distance) / grid.dx));
+    bool near = false;
+    for_each_cell_within<D>(grid, cell_of<D>(grid, xi), reach,
+                            [&](std::uint64_t cell) { near = near || candidate_cells.count(cell) > 0; });
+    if (!near) continue;
+    mine.insert(mine.end(), xi.data(), xi.data() + D);
+    mine.push_back(g.radius[i]);
+  }
+  int size = 0, count = static_cast<int>(mine.size());
+  MPI_Comm_size(comm, &size);
+  std::vector<int> counts(size), displs(size + 1, 0);
+  MPI_Allgather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
+  for (int r = 0; r < size; ++r) displs[r + 1] = displs[r] + counts[r];
+  std::vector<double> all(static_cast<std::size_t>(displs[size]));
+  MPI_Allgatherv(mine.data(), count, MPI_DOUBLE, all.data(), counts.data(), displs.data(), MPI_DOUBLE, comm);
+  std::vector<Obstacle<D>> obstacles(all.size() / (D + 1));
+  for (std::size_t k = 0; k < obstacles.size(); ++k) {
+    obstacles[k].x = Eigen::Map<const Vec<D>>(&all[k * (D + 1)]);
+    obstacles[k].radius = all[k * (D + 1) + D];
+  }
+  return obstacles;
+}
+
+/// The largest radius candidate k may have without overlapping an obstacle or another fitting
+/// candidate (at its radius) near it.
+template <int D>
+double room_of(std::size_t k, const std::vector<Fitting<D>> &fitting, const std::vector<Obstacle<D>> &obstacles) {
+  const Fitting<D> &c = fitting[k];
+  double room = 1.0e20;
+  for (std::size_t o : c.obstacles) room = std::min(room, (c.x - obstacles[o].x).norm() - obstacles[o].radius);
+  for (std::size_t m : c.others) room = std::min(room, (c.x - fitting[m].x).norm() - fitting[m].radius);
+  return room;
+}
+
+/// Pushes the candidates off the obstacles (the candidate moves) and off each other (both move,
+/// half each), Gauss-Seidel, until every gap is at least `gap`: each stays within
+/// (1 - kSmallestShrink) of its radius of its template place (as far as it could have shrunk),
+/// inside its cell (its sums are its cell's) and inside the container [lo, hi].
+template <int D>
+void relax_candidates(const GridGeometry<D> &grid, std::vector<Fitting<D>> &fitting,
+                      const std::vector<Obstacle<D>> &obstacles, double gap, const double lo[3], const double hi[3]) {
+  const double edge = 1e-6 * grid.dx;    // keeps a centre off its cell's faces (round-off)
+  auto hold = [&](Fitting<D> &c) {
+    const Vec<D> moved = c.x - c.home;
+    const double leash = (1 - kSmallestShrink) * c.radius, far = moved.norm();
+    if (far > leash) c.x = c.home + moved * (leash / far);
+    for (int a = 0; a < D; ++a) {    // towards the home, which is inside both
+      const double low = std::max(c.cell_lo[a] + edge, lo[a] + c.radius);
+      const double high = std::min(c.cell_lo[a] + grid.dx - edge, hi[a] - c.radius);
+      if (low <= high) c.x[a] = std::clamp(c.x[a], low, high);
+    }
+  };
+  const double target = 2 * gap;    // aims past the accepted gap: the sweeps converge only asymptotically
+  for (int sweep = 0; sweep < kRelaxSweeps; ++sweep) {
+    double worst = 0;
+    for (std::size_t k = 0; k < fitting.size(); ++k) {
+      Fitting<D> &c = fitting[k];
+      for (std::size_t o : c.obstacles) {
+        const Vec<D> d = c.x - obstacles[o].x;
+        const double dist = d.norm(), overlap = c.radius + obstacles[o].radius + target - dist;
+        if (overlap <= 0 || !(dist > 0)) continue;
+        worst = std::max(worst, overlap);
+        c.x += overlap / dist * d;
+        hold(c);
+      }
+      for (std::size_t m : c.others) {
+        if (m < k) continue;    // each pair once
+        Fitting<D> &b = fitting[m];
+        const Vec<D> d = c.x - b.x;
+        const double dist = d.norm(), overlap = c.radius + b.radius + target - dist;
+        if (overlap <= 0 || !(dist > 0)) continue;
+        worst = std::max(worst, overlap);
+        c.x += 0.5 * overlap / dist * d;
+        b.x -= 0.5 * overlap / dist * d;
+        hold(c);
+        hold(b);
+      }
+    }
+    if (worst <= target - gap) return;
+  }
+}
 
 }    // namespace
 
@@ -68,7 +209,6 @@ std::vector<PlannedGrain<D>> plan_new_grains(const GridGeometry<D> &grid, const 
                                              double grain_diameter, const double lo[3], const double hi[3],
                                              MPI_Comm comm) {
   using Mat = Eigen::Matrix<double, D, D>;
-  constexpr double kBig = 1.0e20;
   std::vector<PlannedGrain<D>> planned;
   std::vector<std::size_t> making;    // slots of the cells that make grains
   for (std::size_t k = 0; k < cells.size(); ++k)
@@ -87,7 +227,7 @@ std::vector<PlannedGrain<D>> plan_new_grains(const GridGeometry<D> &grid, const 
 
   // candidates of every such cell (the same list on every rank)
   std::vector<std::vector<NewGrain<D>>> candidates(making.size());
-  std::map<std::size_t, std::vector<std::pair<std::size_t, std::size_t>>> by_cell;    // cell -> (j, index)
+  std::set<std::uint64_t> candidate_cells;
   double largest = 0.0;
   for (std::size_t j = 0; j < making.size(); ++j) {
     const auto &cell = cells[making[j]];
@@ -100,43 +240,63 @@ std::vector<PlannedGrain<D>> plan_new_grains(const GridGeometry<D> &grid, const 
       for (int a = 0; a < D; ++a)
         inside = inside && candidate.x[a] - candidate.radius >= lo[a] && candidate.x[a] + candidate.radius <= hi[a];
       if (!inside) continue;
-      by_cell[cell.cell].emplace_back(j, candidates[j].size());
+      candidate_cells.insert(cell.cell);
       candidates[j].push_back(candidate);
       largest = std::max(largest, candidate.radius);
     }
   }
-  // room of each candidate: the largest radius no grain (of any group: walls of frozen grains
-  // too) overlaps. A candidate a grain overlaps a little shrinks to fit, down to
-  // kSmallestShrink of its size, so the new packing closes up with the old one; one that would
-  // have to shrink more is dropped.
-  std::vector<std::size_t> offset(making.size() + 1, 0);
-  for (std::size_t j = 0; j < making.size(); ++j) offset[j + 1] = offset[j] + candidates[j].size();
-  std::vector<double> room(offset.back(), kBig), room_all(offset.back(), kBig);
-  for (int i = 0; i < g.n; i++) {
-    const Vec<D> xi = Eigen::Map<const Vec<D>>(g.x[i]);
-    const int reach = static_cast<int>(std::ceil((g.radius[i] + largest) / grid.dx));
-    for_each_cell_within<D>(grid, cell_of<D>(grid, xi), reach, [&](std::uint64_t cell) {
-      const auto it = by_cell.find(cell);
-      if (it == by_cell.end()) return;
-      for (const auto &[j, n] : it->second) {
-        double &r = room[offset[j] + n];
-        r = std::min(r, (candidates[j][n].x - xi).norm() - g.radius[i]);
-      }
-    });
+  // A candidate an old grain (of any rank and group: walls of frozen grains too) overlaps by
+  // more than it could shrink (1 - kSmallestShrink of its radius) is dropped: an overlap would
+  // inject elastic energy. The others keep their template size: pushed off the old grains and
+  // each other (relax_candidates, each within that same distance of its template place); only
+  // what is left overlapped after that shrinks to fit, down to kSmallestShrink. Shrinking alone
+  // made the grains of a long silo discharge smaller than the DEM's (docs/design.md 5.6).
+  const double gap = kTemplateGap * grain_diameter, moves = 2 * (1 - kSmallestShrink) * largest;
+  const std::vector<Obstacle<D>> obstacles = obstacles_near<D>(grid, g, candidate_cells, largest + gap + moves, comm);
+  double largest_obstacle = 0;
+  CellBins<D> obstacle_bins(grid);
+  for (std::size_t o = 0; o < obstacles.size(); ++o) {
+    obstacle_bins.add(obstacles[o].x, o);
+    largest_obstacle = std::max(largest_obstacle, obstacles[o].radius);
   }
-  MPI_Allreduce(room.data(), room_all.data(), static_cast<int>(room.size()), MPI_DOUBLE, MPI_MIN, comm);
+  std::vector<Fitting<D>> fitting;
+  CellBins<D> candidate_bins(grid);
+  for (std::size_t j = 0; j < making.size(); ++j) {
+    const Vec<D> cell_lo = grid.node_position(cell_coords<D>(grid, cells[making[j]].cell));
+    for (std::size_t n = 0; n < candidates[j].size(); ++n) {
+      Fitting<D> c{candidates[j][n].x, candidates[j][n].x, candidates[j][n].radius, j, n, cell_lo, {}, {}};
+      obstacle_bins.near(c.x, c.radius + largest_obstacle + gap + moves, [&](std::size_t o) {
+        if ((c.x - obstacles[o].x).norm() < c.radius + obstacles[o].radius + gap + moves) c.obstacles.push_back(o);
+      });
+      fitting.push_back(std::move(c));
+      if (room_of<D>(fitting.size() - 1, fitting, obstacles) - gap < kSmallestShrink * fitting.back().radius)
+        fitting.pop_back();
+      else
+        candidate_bins.add(fitting.back().x, fitting.size() - 1);
+    }
+  }
+  for (std::size_t k = 0; k < fitting.size(); ++k)
+    candidate_bins.near(fitting[k].x, 2 * largest + gap + moves, [&](std::size_t m) {
+      if (m != k && (fitting[k].x - fitting[m].x).norm() < fitting[k].radius + fitting[m].radius + gap + moves)
+        fitting[k].others.push_back(m);
+    });
+  relax_candidates<D>(grid, fitting, obstacles, gap, lo, hi);
+
+  std::vector<std::vector<NewGrain<D>>> fitted(making.size());
+  std::vector<double> fits(fitting.size());
+  for (std::size_t k = 0; k < fitting.size(); ++k)    // a gap of kTemplateGap diameters, as between template grains
+    fits[k] = room_of<D>(k, fitting, obstacles) - gap;
+  for (std::size_t k = 0; k < fitting.size(); ++k) {
+    if (fits[k] < kSmallestShrink * fitting[k].radius) continue;
+    NewGrain<D> candidate = candidates[fitting[k].j][fitting[k].n];
+    candidate.x = fitting[k].x;
+    candidate.radius = std::min(candidate.radius, fits[k]);
+    fitted[fitting[k].j].push_back(candidate);
+  }
 
   for (std::size_t j = 0; j < making.size(); ++j) {
     const auto &cell = cells[making[j]];
-    std::vector<NewGrain<D>> kept;
-    for (std::size_t n = 0; n < candidates[j].size(); ++n) {
-      NewGrain<D> candidate = candidates[j][n];
-      // a gap of kTemplateGap diameters, as between template grains
-      const double fit = room_all[offset[j] + n] - kTemplateGap * grain_diameter;
-      if (fit < kSmallestShrink * candidate.radius) continue;
-      candidate.radius = std::min(candidate.radius, fit);
-      kept.push_back(candidate);
-    }
+    std::vector<NewGrain<D>> &kept = fitted[j];
     CellMoments<D> material = cell.points;
     material.add(carried[j].moments);
     if (!(material.mass > 0)) continue;

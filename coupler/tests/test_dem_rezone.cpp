@@ -4,9 +4,12 @@
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <array>
 #include <cmath>
+#include <vector>
 
 #include "coupler/dem_rezone.hpp"
+#include "coupler/tuning.hpp"
 
 namespace {
 
@@ -82,6 +85,58 @@ TEST(DemRezoneRanks, EveryRankPlansTheSameGrainsAndAnotherRanksGrainIsInTheWay) 
   std::vector<double> first = mine;
   MPI_Bcast(first.data(), n, MPI_DOUBLE, 0, MPI_COMM_WORLD);
   EXPECT_EQ(mine, first);
+}
+
+// Old grains along a cell's face overlap its candidates a little (by a tenth of a radius): the
+// candidates are pushed off them, keeping their template size (shrinking them instead made the
+// grains of a long silo discharge smaller than the DEM's), and end up overlapping nothing, inside
+// their cell.
+TEST(DemRezoneRanks, CandidatesAnOldGrainOverlapsALittleMoveOffItAndKeepTheirSize) {
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  Scene s;
+  const auto free = s.plan(coupler::DemGrains{});
+  const double face = s.centre[0] - 0.5 * kDx, r_old = 0.5 * kD;
+  std::vector<std::array<double, 3>> xs, vs;
+  for (const auto &p : free)
+    if (p.grain.x[0] - face < 0.8 * kD)    // the candidates along the left face
+      xs.push_back({p.grain.x[0] - (0.9 * p.grain.radius + r_old), p.grain.x[1], 0});
+  ASSERT_GE(xs.size(), 3u);
+  const int n = static_cast<int>(xs.size());
+  vs.assign(xs.size(), {0, 0, 0});
+  std::vector<double *> x(n), v(n);
+  std::vector<double> radius(n, r_old), rmass(n, 1.0), weight(n, 1.0);
+  std::vector<int> mask(n, 1);
+  for (int i = 0; i < n; ++i) x[i] = xs[i].data(), v[i] = vs[i].data();
+  coupler::DemGrains old;
+  if (rank == 1) {    // held by the other rank
+    old.n = n, old.x = x.data(), old.v = v.data(), old.omega = v.data(), old.radius = radius.data();
+    old.rmass = rmass.data(), old.mask = mask.data(), old.groupbit = 1, old.weight = weight.data();
+  }
+  const auto fitted = s.plan(old);
+
+  int moved = 0;
+  double d2_free = 0, d2_fitted = 0;
+  for (const auto &p : free) d2_free += p.grain.radius * p.grain.radius;
+  for (const auto &p : fitted) {
+    d2_fitted += p.grain.radius * p.grain.radius;
+    // the template grain it was cut as: the free plan's nearest of the same size
+    double nearest = 1;
+    for (const auto &q : free)
+      if (q.grain.radius == p.grain.radius) nearest = std::min(nearest, (q.grain.x - p.grain.x).norm());
+    EXPECT_LE(nearest, (1 - coupler::kSmallestShrink) * p.grain.radius * (1 + 1e-9)) << "moved farther than it may";
+    moved += nearest > 1e-12 ? 1 : 0;
+    EXPECT_EQ(coupler::cell_of<2>(s.grid, p.grain.x), coupler::cell_coords<2>(s.grid, s.cells[0].cell));
+    for (const auto &o : xs)
+      EXPECT_GE((p.grain.x - Eigen::Vector2d(o[0], o[1])).norm(), p.grain.radius + r_old) << "overlaps an old grain";
+    for (const auto &q : fitted)
+      if (&q != &p) EXPECT_GE((p.grain.x - q.grain.x).norm(), p.grain.radius + q.grain.radius) << "two new grains overlap";
+  }
+  EXPECT_GE(moved, n / 2) << "the overlapped candidates were not pushed off";
+  // the same sizes: every kept grain at its template size, as many grains within one
+  EXPECT_NEAR(d2_fitted / static_cast<double>(fitted.size()), d2_free / static_cast<double>(free.size()),
+              0.01 * d2_free / static_cast<double>(free.size()));
+  EXPECT_NEAR(static_cast<double>(fitted.size()), static_cast<double>(free.size()), 1.0);
 }
 
 TEST(DemRezoneRanks, CellSumsAreSummedOverTheRanks) {

@@ -54,9 +54,11 @@ struct PlannedGrain {
 };
 
 /// Enrichment, in the listed cells that make grains: candidates cut from the packing template
-/// where the points are and inside the container [lo, hi], shrunk to fit the grains of every
-/// rank (all of this rank's atoms, of any group, are obstacles) down to kSmallestShrink of
-/// their size, nearest the points' centre first, as many as the cell's material (its points
+/// where the points are and inside the container [lo, hi], fitted among the grains of every
+/// rank (all of this rank's atoms, of any group, are obstacles): dropped where one overlaps
+/// them by more than 1 - kSmallestShrink of their radius, else pushed off them and each other
+/// by at most that much within their cell, shrunk (down to kSmallestShrink) only where still
+/// overlapped; nearest the points' centre first, as many as the cell's material (its points
 /// plus its old grains, whose sums `sums` holds on each rank) fills at their solid mass; each
 /// moves with the continuum's affine field. The same list on every rank (collective).
 template <int D>

@@ -4,11 +4,12 @@
 
 namespace coupler {
 
-/// A grain made from points (enrichment, design.md 5.6) that an old grain overlaps shrinks to
-/// fit, down to this share of its radius, and is dropped if it would have to shrink more (an
-/// overlap would inject elastic energy). Dropping every overlapped candidate left gaps along the
-/// old packing; 0.8 closes them while a made grain stays within 20 % of the template's size
-/// (set with the handoff cycle of tests/test_adaptive_zones.py, not tuned further).
+/// A grain made from points (enrichment, design.md 5.6) that an old grain overlaps by more than
+/// 1 - this share of its radius is dropped (an overlap would inject elastic energy); one
+/// overlapped less is pushed off by at most that much, keeping its size, and shrinks to fit, down
+/// to this share of its radius, only where the pushes leave it overlapped. Dropping every
+/// overlapped candidate left gaps along the old packing; 0.8 closes them (set with the handoff
+/// cycle of tests/test_adaptive_zones.py, not tuned further).
 inline constexpr double kSmallestShrink = 0.8;
 
 /// The smallest MPM cell adaptive zones accept, in mean grain diameters: with cells under 2 d the
