@@ -45,12 +45,13 @@ surface only (fix keyword surface_depth), the floor and the orifice's region kee
 
 Cost on this 2-core machine: a size's settled silo is prepared once per machine (~/.cache/hybrid-
 granular) and its preparation is not timed, but it is long at 160 d: the pour alone is 289,106 steps of
-87,210 disks (5,732 s on 2026-11-27 while the test suite shared the cores), then chunks of 0.02 s (65-116
-s each) until the mean kinetic energy per grain is under 1e-5 m g d (1.5e-9 J; it rang between 3e-9 and
-3e-7 J over the first 8 chunks), then the trim and a second settle. With the DEM's 1 s of discharge
-(~43 min) and two hybrids, `--sizes 160` on a fresh machine needs 2 h or more alone (how long the settle
-rings is not known beforehand): start it first, with nothing else running (a test suite beside the
-preparation doubles it).
+87,210 disks (about 65 min alone: 6,544 s of loop time on 2026-11-27 with 35 min of it paused), then
+chunks of 0.02 s (88-115 s each alone) until the mean kinetic energy per grain is under 1e-5 m g d
+(1.5e-9 J). That settle rings: 3e-9 to 3e-7 J over the first 8 chunks, still 3e-9 to 2e-8 J at t =
+0.96 s, 12 chunks in (the preparation is deterministic: two sessions printed the same values), then the
+trim and a second settle. With the DEM's 1 s of discharge (~43 min) and two hybrids, `--sizes 160` on a
+fresh machine needs well over 2 h alone: start it first, with nothing else running (a test suite beside
+the preparation doubles it), or shorten the settle first (it changes every silo's packing).
 
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--liggghts]
                             [--collapse-sizes 50,100,200]
