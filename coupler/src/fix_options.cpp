@@ -96,10 +96,8 @@ namespace {
 
 // grains of unit diameter per material point in a cell `cell_in_grains` diameters wide
 double grains_per_point(int dimension, double cell_in_grains, double packing, int points_per_axis) {
-  constexpr double kPi = 3.14159265358979323846;
-  const double grain_volume = dimension == 2 ? kPi / 4.0 : kPi / 6.0;
   return packing * std::pow(cell_in_grains, dimension) /
-         (grain_volume * std::pow(static_cast<double>(points_per_axis), dimension));
+         (grain_volume(dimension, 0.5) * std::pow(static_cast<double>(points_per_axis), dimension));
 }
 
 }    // namespace
