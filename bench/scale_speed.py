@@ -57,6 +57,7 @@ Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d
                             [--collapse-sizes 50,100,200]
                             [--depths 12,24] [--surface-depths 12] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
+       bench/scale_speed.py --prepare --sizes 160   (only the settled silos, cached; not timed)
 Writes bench/results/scale_speed.json (a list `rows`, one per scene, size and cores at the fix's zones,
 and `depth_front`, the depth variants), scale_speed.md and scale_speed.png; the notes
 below the marker in scale_speed.md are kept (hgtools.report).
@@ -472,6 +473,9 @@ def main() -> int:
     ap.add_argument("--pin", action="store_true",
                     help="pin the runs to the first --np cores (DEM and hybrid, MPM process included, share them): "
                          "equal cores even where a waiting process would poll on a free core")
+    ap.add_argument("--prepare", action="store_true",
+                    help="run nothing timed: only prepare (and cache) the settled silos of --sizes and --silo3d-sizes, "
+                         "e.g. beside other work; a later invocation then times DEM and hybrid alone")
     ap.add_argument("--render", action="store_true",
                     help="run nothing: rewrite the report, the plot and the JSON's layout from the JSON "
                          "(after editing the notes)")
@@ -519,6 +523,12 @@ def main() -> int:
         write(old + rows, command, stamp, a.out)
 
     silo2d, silo3d = (cls(a.np_, a.seed, a.tdis, a.hcell) for cls in (Silo2d, Silo3d))
+    if a.prepare:    # the packings only: their preparation is not timed, so it may share the machine
+        for silo, ns in ((silo2d, sizes), (silo3d, [int(n) for n in a.silo3d_sizes.split(",") if n])):
+            for n in ns:
+                silo.prepare(n, a.work)
+                print(f"{silo.scene} {n} d: settled silo cached", flush=True)
+        return 0
     for n in sizes:
         finish(run_silo(silo2d, n, a.threads, a.work, variants))
     for n in (int(n) for n in a.silo3d_sizes.split(",") if n):
