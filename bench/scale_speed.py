@@ -44,14 +44,14 @@ and the orifice's region (the third panel of the plot); --surface-depths moves i
 surface only (fix keyword surface_depth), the floor and the orifice's region keeping the fix's depth.
 
 Cost on this 2-core machine: a size's settled silo is prepared once per machine (~/.cache/hybrid-
-granular) and its preparation is not timed, but it is long at 160 d: the pour alone is 289,106 steps of
-87,210 disks (about 65 min alone: 6,544 s of loop time on 2026-11-27 with 35 min of it paused), then
-chunks of 0.02 s (88-115 s each alone) until the mean kinetic energy per grain is under 1e-5 m g d
-(1.5e-9 J). That settle rings: 3e-9 to 3e-7 J over the first 8 chunks, still 3e-9 to 2e-8 J at t =
-0.96 s, 12 chunks in (the preparation is deterministic: two sessions printed the same values), then the
-trim and a second settle. With the DEM's 1 s of discharge (~43 min) and two hybrids, `--sizes 160` on a
-fresh machine needs well over 2 h alone: start it first, with nothing else running (a test suite beside
-the preparation doubles it), or shorten the settle first (it changes every silo's packing).
+granular) and its preparation is not timed (`--prepare` does only that, and may share the machine), but
+it is long at 160 d: the pour alone is 289,106 steps of 87,210 disks (about 65 min alone).
+Since the deck's settle loops have a drag (2026-11-27, docs/design.md 3.4) the fill rests 4 loops of
+0.02 s after the pour (t = 0.84 s; without it, it still swung between 3e-9 and 2e-8 J per grain against
+the threshold of 1.5e-9 J 12 loops in), then the trim, 0.05 s and one loop: 79,627 disks at rest at
+t = 0.911 s, about 10 min of settling alone (the whole preparation took 7,950 s on 2026-11-27, a test
+suite running beside it for the first 6,060 s). With the DEM's 1 s of discharge (~43 min) and two
+hybrids, `--sizes 160` then needs about 55 min alone.
 
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--liggghts]
                             [--collapse-sizes 50,100,200]
