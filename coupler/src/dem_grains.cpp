@@ -50,7 +50,7 @@ std::vector<CellGrains> cell_grains(const GridGeometry<D> &grid, const DemGrains
   for (int i = 0; i < g.n; i++) {
     if (!g.coupled(i)) continue;
     const auto c = cell_of<D>(grid, Eigen::Map<const Eigen::Matrix<double, D, 1>>(g.x[i]));
-    if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) continue;
+    if (!cell_on_grid<D>(grid, c)) continue;
     const std::size_t k = cell_index<D>(grid, c);
     auto &cell = cells[k];
     cell.cell = k;

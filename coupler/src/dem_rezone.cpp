@@ -13,12 +13,6 @@ namespace {
 template <int D>
 using Vec = Eigen::Matrix<double, D, 1>;
 
-/// Whether cell coordinates c name a cell of the grid.
-template <int D>
-bool on_grid(const GridGeometry<D> &grid, const Eigen::Matrix<int, D, 1> &c) {
-  return (c.array() >= 0).all() && (c.array() < grid.dims.array() - 1).all();
-}
-
 /// Most Gauss-Seidel sweeps that push made grains off the old ones and each other
 /// (relax_candidates; each push is at most a fifth of a radius). A candidate still overlapped
 /// after them shrinks to fit, so the bound costs size, never an overlap.
@@ -50,7 +44,7 @@ class CellBins {
   explicit CellBins(const GridGeometry<D> &grid) : grid_(grid) {}
   void add(const Vec<D> &x, std::size_t i) {
     const Eigen::Matrix<int, D, 1> c = cell_of<D>(grid_, x);
-    if (on_grid<D>(grid_, c)) bins_[cell_index<D>(grid_, c)].push_back(i);
+    if (cell_on_grid<D>(grid_, c)) bins_[cell_index<D>(grid_, c)].push_back(i);
   }
   /// Calls f(i) for every position added within `distance` of x (and some farther).
   template <class F>
@@ -164,7 +158,7 @@ void relax_candidates(const GridGeometry<D> &grid, std::vector<Fitting<D>> &fitt
 template <int D>
 std::int64_t slot_of_cell_at(const GridGeometry<D> &grid, const double *x, const CellSlots &slots) {
   const auto c = cell_of<D>(grid, Eigen::Map<const Vec<D>>(x));
-  if (!on_grid<D>(grid, c)) return -1;
+  if (!cell_on_grid<D>(grid, c)) return -1;
   const auto it = slots.find(cell_index<D>(grid, c));
   return it == slots.end() ? -1 : static_cast<std::int64_t>(it->second);
 }

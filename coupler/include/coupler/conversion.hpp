@@ -368,6 +368,11 @@ template <int D>
 Eigen::Matrix<int, D, 1> cell_of(const GridGeometry<D>& grid, const Eigen::Matrix<double, D, 1>& x) {
   return grid.to_cell_units(x).array().floor().template cast<int>().matrix();
 }
+/// Whether cell coordinates c (as cell_of gives) name a cell of the grid.
+template <int D>
+bool cell_on_grid(const GridGeometry<D>& grid, const Eigen::Matrix<int, D, 1>& c) {
+  return (c.array() >= 0).all() && (c.array() < grid.dims.array() - 1).all();
+}
 template <int D>
 Eigen::Matrix<int, D, 1> cell_coords(const GridGeometry<D>& grid, std::size_t k) {
   Eigen::Matrix<int, D, 1> c;
@@ -387,12 +392,8 @@ void for_each_cell_within(const GridGeometry<D>& grid, const Eigen::Matrix<int, 
   for (int a = 0; a < D; ++a) span *= side;
   for (int o = 0; o < span; ++o) {
     Eigen::Matrix<int, D, 1> cj;
-    bool on_grid = true;
-    for (int a = 0, r = o; a < D; ++a, r /= side) {
-      cj[a] = c[a] + r % side - reach;
-      on_grid = on_grid && cj[a] >= 0 && cj[a] < grid.dims[a] - 1;
-    }
-    if (on_grid) f(cell_index<D>(grid, cj));
+    for (int a = 0, r = o; a < D; ++a, r /= side) cj[a] = c[a] + r % side - reach;
+    if (cell_on_grid<D>(grid, cj)) f(cell_index<D>(grid, cj));
   }
 }
 template <int D>

@@ -68,7 +68,7 @@ bool add_grain_volume(const GridGeometry<D>& grid, const Eigen::Matrix<double, D
   if (cell_volume.empty()) cell_volume.assign(n, 0.0);
   if (cell_volume.size() != n) throw std::invalid_argument("add_grain_volume: cell_volume has the wrong size");
   const Eigen::Matrix<int, D, 1> c = cell_of(grid, x);
-  if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return false;
+  if (!cell_on_grid(grid, c)) return false;
   cell_volume[cell_index(grid, c)] += volume;
   return true;
 }
@@ -88,7 +88,7 @@ void mark_point_cell(const GridGeometry<D>& grid, const Eigen::Matrix<double, D,
                      std::vector<std::uint8_t>& has_points) {
   if (has_points.empty()) has_points.assign(num_cells(grid), 0);
   const Eigen::Matrix<int, D, 1> c = cell_of(grid, x);
-  if ((c.array() < 0).any() || (c.array() >= grid.dims.array() - 1).any()) return;
+  if (!cell_on_grid(grid, c)) return;
   has_points[cell_index(grid, c)] = 1;
 }
 

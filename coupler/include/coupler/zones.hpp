@@ -83,7 +83,6 @@ inline std::array<std::size_t, 3> zone_counts(const std::vector<std::int8_t>& zo
 inline std::vector<std::uint64_t> cells_of_triangles(const GridGeometry<3>& grid, const std::vector<double>& vertices) {
   using Vec3 = Eigen::Vector3d;
   std::vector<std::uint64_t> cells;
-  const Eigen::Vector3i last = grid.dims.array() - 2;    // the highest cell index per axis
   for (std::size_t t = 0; t + 9 <= vertices.size(); t += 9) {
     const Vec3 a(vertices[t], vertices[t + 1], vertices[t + 2]), b(vertices[t + 3], vertices[t + 4], vertices[t + 5]),
         c(vertices[t + 6], vertices[t + 7], vertices[t + 8]);
@@ -94,7 +93,7 @@ inline std::vector<std::uint64_t> cells_of_triangles(const GridGeometry<3>& grid
       for (int j = 0; i + j <= n; ++j) {
         const Vec3 x = a + (b - a) * (static_cast<double>(i) / n) + (c - a) * (static_cast<double>(j) / n);
         const Eigen::Vector3i cell = cell_of<3>(grid, x);
-        if ((cell.array() >= 0).all() && (cell.array() <= last.array()).all()) cells.push_back(cell_index<3>(grid, cell));
+        if (cell_on_grid<3>(grid, cell)) cells.push_back(cell_index<3>(grid, cell));
       }
   }
   std::sort(cells.begin(), cells.end());
