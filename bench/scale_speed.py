@@ -494,6 +494,7 @@ def main() -> int:
         os.sched_setaffinity(0, set(range(a.np_)))
         os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
     sizes = [int(n) for n in a.sizes.split(",") if n]
+    sizes3d = [int(n) for n in a.silo3d_sizes.split(",") if n]
     variants = tuple(((key, x if key == "every" and x == "auto" else float(x)),)    # the fix's every auto
                      for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths), ("every", a.every))
                      for x in values.split(",") if x)
@@ -524,14 +525,14 @@ def main() -> int:
 
     silo2d, silo3d = (cls(a.np_, a.seed, a.tdis, a.hcell) for cls in (Silo2d, Silo3d))
     if a.prepare:    # the packings only: their preparation is not timed, so it may share the machine
-        for silo, ns in ((silo2d, sizes), (silo3d, [int(n) for n in a.silo3d_sizes.split(",") if n])):
+        for silo, ns in ((silo2d, sizes), (silo3d, sizes3d)):
             for n in ns:
                 silo.prepare(n, a.work)
                 print(f"{silo.scene} {n} d: settled silo cached", flush=True)
         return 0
     for n in sizes:
         finish(run_silo(silo2d, n, a.threads, a.work, variants))
-    for n in (int(n) for n in a.silo3d_sizes.split(",") if n):
+    for n in sizes3d:
         finish(run_silo(silo3d, n, a.threads, a.work, variants, a.liggghts))
     for n in (int(n) for n in a.collapse_sizes.split(",") if n):
         finish([run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)])
