@@ -38,6 +38,15 @@ def run_mpm(exe: Path, scene: Path, *args: str, timeout: float = 900, check: boo
     return proc
 
 
+def assert_twin_params_agree(results: dict, rel: float = 1e-9) -> None:
+    """The LAMMPS deck and its LIGGGHTS twin printed the same contact parameters and time step
+    (`results[code].params`, the values each deck prints)."""
+    a, b = results["lammps"].params, results["liggghts"].params
+    assert a.keys() == b.keys()
+    for k in a:
+        assert a[k] == pytest.approx(b[k], rel=rel), (k, a[k], b[k])
+
+
 @pytest.fixture(scope="session")
 def lmp() -> str:
     """Debian's stock LAMMPS; a missing one fails the test (never skips)."""

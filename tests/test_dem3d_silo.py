@@ -55,6 +55,7 @@ import re
 import numpy as np
 import pytest
 
+from conftest import assert_twin_params_agree
 from dem3d_silo import run
 from hgtools.discharge import rate_ratio_se
 
@@ -121,10 +122,7 @@ def test_closed_orifice_holds_the_settled_grains(results):
 
 def test_same_parameters(results):
     """The twin decks printed the same contact parameters and timestep."""
-    a, b = results["lammps"].params, results["liggghts"].params
-    assert a.keys() == b.keys()
-    for k in a:
-        assert a[k] == pytest.approx(b[k], rel=1e-12), (k, a[k], b[k])
+    assert_twin_params_agree(results, rel=1e-12)
 
 
 @pytest.mark.parametrize("code", ["lammps", "liggghts"])

@@ -73,6 +73,7 @@ import math
 
 import pytest
 
+from conftest import assert_twin_params_agree
 from dem_impact import run
 
 WIDTH_ROWS, DEPTH, D, DP, SPEED, RHOP = 12, 0.024, 0.002, 0.012, 4.0, 2500.0
@@ -107,10 +108,8 @@ def results(tmp_path_factory, lmp, liggghts, hybrid_programs):
 
 def test_same_parameters(results):
     """The twin decks printed the same contact parameters and time step; kn is scaled with v0."""
-    a, b = results["lammps"].params, results["liggghts"].params
-    assert a.keys() == b.keys()
-    for k in a:
-        assert a[k] == pytest.approx(b[k], rel=1e-9), (k, a[k], b[k])
+    assert_twin_params_agree(results)
+    a = results["lammps"].params
     mref = 2500.0 * math.pi / 6 * D ** 3
     assert a["kn"] == pytest.approx(2500 * mref * (SPEED / D) ** 2, rel=1e-9)
     assert a["kt"] == pytest.approx(2.0 / 7.0 * a["kn"], rel=1e-9)

@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import pytest
 
+from conftest import assert_twin_params_agree
 from dem_plough import run
 
 DEPTH, D = 0.008, 0.002
@@ -103,10 +104,7 @@ def hybrid(results, hybrid_programs, tmp_path_factory):
 
 def test_same_parameters(results):
     """The twin decks printed the same contact parameters and timestep."""
-    a, b = results["lammps"].params, results["liggghts"].params
-    assert a.keys() == b.keys()
-    for k in a:
-        assert a[k] == pytest.approx(b[k], rel=1e-9), (k, a[k], b[k])
+    assert_twin_params_agree(results)
 
 
 @pytest.mark.parametrize("code", ["lammps", "liggghts", "lammps_walls"])

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import pytest
 
+from conftest import assert_twin_params_agree
 from dem3d_collapse import run
 
 TOLERANCE = 0.15      # |R_lammps - R_liggghts| / mean(R) must stay below this
@@ -57,10 +58,7 @@ def results(tmp_path_factory, lmp, liggghts):
 
 def test_same_parameters(results):
     """The twin decks printed the same contact parameters and timestep."""
-    a, b = results["lammps"].params, results["liggghts"].params
-    assert a.keys() == b.keys()
-    for k in a:
-        assert a[k] == pytest.approx(b[k], rel=1e-9), (k, a[k], b[k])
+    assert_twin_params_agree(results)
 
 
 @pytest.mark.parametrize("code", ["lammps", "liggghts"])
