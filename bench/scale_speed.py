@@ -438,6 +438,11 @@ def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
     write_report(out, "\n".join(text))
 
 
+def parse_sizes(text: str) -> list[int]:
+    """Sizes in grain diameters from a comma list ('' = none)."""
+    return [int(n) for n in text.split(",") if n]
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--np", type=int, default=2, dest="np_", help="LAMMPS ranks, DEM and hybrid alike")
@@ -493,8 +498,7 @@ def main() -> int:
     if a.pin:    # inherited by every run this starts; Open MPI must not rebind its processes
         os.sched_setaffinity(0, set(range(a.np_)))
         os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
-    sizes = [int(n) for n in a.sizes.split(",") if n]
-    sizes3d = [int(n) for n in a.silo3d_sizes.split(",") if n]
+    sizes, sizes3d, collapse_sizes = (parse_sizes(x) for x in (a.sizes, a.silo3d_sizes, a.collapse_sizes))
     variants = tuple(((key, x if key == "every" and x == "auto" else float(x)),)    # the fix's every auto
                      for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths), ("every", a.every))
                      for x in values.split(",") if x)
@@ -534,7 +538,7 @@ def main() -> int:
         finish(run_silo(silo2d, n, a.threads, a.work, variants))
     for n in sizes3d:
         finish(run_silo(silo3d, n, a.threads, a.work, variants, a.liggghts))
-    for n in (int(n) for n in a.collapse_sizes.split(",") if n):
+    for n in collapse_sizes:
         finish([run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)])
     return 0
 
