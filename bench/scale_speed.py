@@ -50,8 +50,9 @@ Since the deck's settle loops have a drag (2026-11-27, docs/design.md 3.4) the f
 0.02 s after the pour (t = 0.84 s; without it, it still swung between 3e-9 and 2e-8 J per grain against
 the threshold of 1.5e-9 J 12 loops in), then the trim, 0.05 s and one loop: 79,627 disks at rest at
 t = 0.911 s, about 10 min of settling alone (the whole preparation took 7,950 s on 2026-11-27, a test
-suite running beside it for the first 6,060 s). With the DEM's 1 s of discharge (~43 min) and two
-hybrids, `--sizes 160` then needs about 55 min alone.
+suite running beside it for the first 6,060 s). With the DEM's 1 s of discharge and two
+hybrids, `--sizes 160` then needs about 55 min alone on a fast day (the DEM ~43 min) and took 2 h on
+2026-11-28 (the DEM 99 min, its speed drifting 2x between chunks: compare the model's prediction).
 
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--liggghts]
                             [--collapse-sizes 50,100,200]
