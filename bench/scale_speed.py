@@ -8,11 +8,14 @@ height H = 3 W, orifice D = 10 d, d = 2 mm (3 n^2 d^2 at 82 % packing holds abou
 n = 40, 90, 160 give about 5k, 25k and 80k disks). Each size runs the discharge as pure
 DEM and as the hybrid from the same cached settled silo, on the same LAMMPS ranks; the hybrid's
 MPM process (OpenMP, default threads) runs only while LAMMPS waits for it, so both use the same
-cores. The hybrid uses the fix's grid from the grains (`hcell 0`: 6 d cells, 2x2 points, about
+cores. The DEM and its hybrids run in the same minutes, one at a time (tools/hgtools/interleave.py:
+quanta of 5 s, each to the run least far along its discharge record), so that a machine whose speed
+drifts slows them alike (the runs one after the other, until 2026-11-28, gave the 80k silo's DEM
+chunks 37-79 s); a run's time is the sum of its quanta. The hybrid uses the fix's grid from the grains (`hcell 0`: 6 d cells, 2x2 points, about
 9 disks per point) unless --hcell says otherwise.
 
-Measures, per size: the DEM's and the hybrid's wall times of the discharge (speedup = DEM over
-hybrid), the steady discharge rate of each (error = hybrid over DEM - 1, ± its standard error from the
+Measures, per size: the DEM's and the hybrid's wall times of the discharge, counting only the
+quanta in which each ran (speedup = DEM over hybrid), the steady discharge rate of each (error = hybrid over DEM - 1, ± its standard error from the
 two runs' own fluctuation, hgtools.discharge.rate_standard_error; beside it the same for the grains
 counted, since a hybrid's grains may carry more or less than their solid mass), the continuum's share
 of the material (1 - the grains' carried mass over the total, f_couple[8], averaged over the
@@ -36,7 +39,8 @@ four side walls touched, exchange every 10 steps; the cost model with the 3D MPM
 
 Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collapse/dem_2d.lmp with
 `hybrid 2`, `hcell 0`): the DEM and the adaptive hybrid collapse from the same cached column to
-rest; error = the final surface's RMS over H0, and the runout's relative error.
+rest; error = the final surface's RMS over H0, and the runout's relative error (the two in turns of
+5 s, as a collapse has no record of how far it is).
 
 Silo rows may also run the hybrid at other zone depths (--depths, grain diameters) against the same
 DEM run: the error against wall time as the continuum comes closer to the free surface, the floor
@@ -69,9 +73,10 @@ import argparse
 import json
 import os
 import re
-import resource
 import sys
+from dataclasses import replace
 from datetime import datetime, timezone
+from functools import partial
 from itertools import product
 from pathlib import Path
 
@@ -80,10 +85,11 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 from column_collapse import combine_surfaces, points_surface, surface_error  # noqa: E402
-from dem_collapse import run as collapse  # noqa: E402
+from dem_collapse import run as collapse, settled as settled_column  # noqa: E402
 import dem3d_silo  # noqa: E402
 from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
-from hgtools.discharge import rate_ratio_se  # noqa: E402
+from hgtools.discharge import rate_ratio_se, recorded_time  # noqa: E402
+from hgtools.interleave import Job, interleave, no_progress  # noqa: E402
 from hgtools.logs import thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
@@ -95,6 +101,9 @@ ORIFICE_3D = 6                # orifice diameter of the 3D silo, d (the reduced 
 DEPTH = 3                     # fill height over width
 ASPECT = 2                    # the collapse's H0 / L0
 EVERY = 10                    # the hybrids' exchange interval (hybrid_2d.lmp's default; hybrid_3d.lmp's is 20)
+QUANTUM = 5.0                 # s, how long one run of a comparison runs before the next may (hgtools.interleave)
+MAX_STOP = 120.0              # s, the longest a run waits stopped while the others catch up with it
+REPLY_TIMEOUT = 600.0         # s, the silo hybrids' fix keyword timeout (deck variable htimeout): > MAX_STOP
 
 
 def silo_size(n: int, orifice: int = ORIFICE) -> dict:
@@ -138,17 +147,18 @@ def hybrid_ledger(log: Path, every: int) -> dict:
         mpm_wait_s=rows[-1]["f_couple[31]"], rezone_s=rows[-1]["f_couple[32]"])
 
 
-def children_cpu() -> float:
-    """CPU seconds (user + system) of every finished child process and its descendants so far."""
-    r = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return r.ru_utime + r.ru_stime
-
-
-def timed(run, **kwargs):
-    """run(**kwargs) and the CPU seconds its processes used: on a shared machine the CPU time is
-    the steadier measure of the work (a descheduled process's wall time grows, its CPU time not)."""
-    before = children_cpu()
-    return run(**kwargs), children_cpu() - before
+def side_by_side(runs: list[tuple[str, callable, Path | None]]) -> list[tuple]:
+    """The runs of one comparison (name, the call, its discharge record or None) in the same
+    minutes, one at a time (hgtools.interleave: each quantum to the run least far along its record,
+    in turns without one), and for each its result, its wall and loop time made the time it ran,
+    and the CPU seconds its processes used (the steadier measure of the work on a shared machine)."""
+    for _, _, record in runs:
+        if record is not None:
+            record.unlink(missing_ok=True)    # a former run's record is no measure of this one's progress
+    jobs = [Job(name, run, no_progress if record is None else partial(recorded_time, record))
+            for name, run, record in runs]
+    return [(replace(o.result, wall_time=o.running(o.result.wall_time), loop_time=o.running(o.result.loop_time)),
+             o.cpu_s) for o in interleave(jobs, quantum=QUANTUM, max_stop=MAX_STOP)]
 
 
 def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim: int = 2, every: int = EVERY) -> dict:
@@ -270,26 +280,32 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
     same packing too, the DEM's noise floor (its rate against LAMMPS's)."""
     tag = "" if silo.dim == 2 else "3d_"
     silo.prepare(n, work)
-    dem, dem_cpu = timed(silo.run, n=n, out=work / f"dem_{tag}{n}")
-    noise = None
-    if liggghts:
-        lig = silo.run(n, work / f"liggghts_{tag}{n}", code="liggghts")
-        noise = lig.rate / dem.rate - 1
-    rows = []
+    hybrids = []    # (deck variables, zone keys, run name) of the hybrid at the fix's zones and each variant
     for variant in (None, *variants):
-        hvars, zones = dict(silo.hybrid_vars), {key: None for key in VARIANTS}
+        hvars, zones = dict(silo.hybrid_vars, htimeout=f"{REPLY_TIMEOUT:g}"), {key: None for key in VARIANTS}
         name = f"hybrid_{tag}{n}"
         for key, value in variant or ():
             hvars[VARIANTS[key][0]] = f"{value * D:.9g}" if VARIANTS[key][3] else variant_value(value)
             zones[key] = value
             name += f"_{VARIANTS[key][1]}{variant_value(value)}"
-        hyb, hyb_cpu = timed(silo.run, n=n, out=work / name, hybrid_vars=hvars)
+        hybrids.append((hvars, zones, name))
+    timed = side_by_side([(name, partial(silo.run, n=n, out=work / name, hybrid_vars=hvars),
+                           work / name / "discharge.dat")
+                          for hvars, _, name in [(None, None, f"dem_{tag}{n}"), *hybrids]])
+    (dem, dem_cpu), timed = timed[0], timed[1:]
+    noise = None
+    if liggghts:    # its rate only: not timed
+        lig = silo.run(n, work / f"liggghts_{tag}{n}", code="liggghts")
+        noise = lig.rate / dem.rate - 1
+    rows = []
+    for (hvars, zones, name), (hyb, hyb_cpu), variant in zip(hybrids, timed, (None, *variants)):
         row = dict(scene=silo.scene, grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=silo.orifice_d,
                    **zones, error=hyb.rate / dem.rate - 1, runout_error=None, discharge_s=silo.common["tdis"],
                    cores=silo.common["np_"],
                    lammps_ranks=silo.common["np_"], mpm_threads=threads, rate_dem=dem.rate, rate_hybrid=hyb.rate,
                    grain_rate_error=hyb.grain_rate / dem.grain_rate - 1, **rate_uncertainty(dem, hyb),
                    mass_per_grain_error=hyb.mass_per_grain / dem.mass_per_grain - 1, hcell=silo.hybrid_vars["hcell"],
+                   interleaved=True,
                    **({} if noise is None else dict(noise_floor=noise, rate_liggghts=lig.rate,
                                                     noise_floor_se=rate_ratio_se(lig, dem))),
                    **speeds(dem, hyb, dem_cpu, hyb_cpu),
@@ -307,17 +323,19 @@ def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Pa
     """The 2D column collapse, a = 2, L0 = n d: DEM and the adaptive hybrid from the same cached
     column, to rest (the deck's criterion); error = final surface RMS over H0 (grains and points)."""
     common = dict(aspect=ASPECT, width=n * D, d=D, np_=np_, seed=seed, timeout=4 * 3600)
-    dem, dem_cpu = timed(collapse, out=work / f"dem_c{n}", **common)
-    if dem.prepared:    # the collapse from the cached column, as the hybrid starts (dem_collapse.run_from_settled)
-        dem, dem_cpu = timed(collapse, out=work / f"dem_c{n}", **common)
-    hyb, hyb_cpu = timed(collapse, out=work / f"hybrid_c{n}", hybrid_vars={"hybrid": 2, "hcell": hcell}, **common)
+    if not settled_column(ASPECT, n * D, D, seed, {}).cached():    # the column first, not timed: both
+        collapse(out=work / f"dem_c{n}", **common)                   # then start from the cached one
+    (dem, dem_cpu), (hyb, hyb_cpu) = side_by_side([
+        ("dem", partial(collapse, out=work / f"dem_c{n}", **common), None),
+        ("hybrid", partial(collapse, out=work / f"hybrid_c{n}", hybrid_vars={"hybrid": 2, "hcell": hcell}, **common),
+         None)])
     points = load_run(work / f"hybrid_c{n}" / "frames").frame(-1)["position"]
     surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, n * D / 20, 2 * D))
     h0 = ASPECT * n * D
     row = dict(scene="collapse_2d", grains=dem.grains, width_d=n, height_d=int(ASPECT * n), orifice_d=None,
                error=surface_error(surface, np.array(dem.profile).T, h0), runout_error=hyb.runout / dem.runout - 1,
                steps_ratio=hyb.steps / dem.steps, cores=np_, lammps_ranks=np_, mpm_threads=threads,
-               runout_dem=dem.runout, runout_hybrid=hyb.runout, hcell=hcell, **speeds(dem, hyb, dem_cpu, hyb_cpu),
+               runout_dem=dem.runout, runout_hybrid=hyb.runout, hcell=hcell, interleaved=True, **speeds(dem, hyb, dem_cpu, hyb_cpu),
                **cost_model(dem.loop_time, work / f"dem_c{n}" / "log.lammps", work / f"hybrid_c{n}" / "log.lammps",
                             threads))
     print(f"collapse L0 = {n} d: {dem.grains} grains, speedup {row['speedup']:.2f}x (model "
@@ -352,7 +370,8 @@ def table(rows: list[dict]) -> list[str]:
         out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']}{depth} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
                    f"{cpu} | {r['predicted_speedup']:.2f}x | {error} | {runout} | {r['coupling_s']:.1f} "
-                   f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) | {r.get('date', '').removesuffix(' UTC')} |")
+                   f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) | {r.get('date', '').removesuffix(' UTC')}"
+                   f"{', same minutes' if r.get('interleaved') else ''} |")
     return out
 
 
@@ -434,7 +453,9 @@ def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
     text = ["# Hybrid against pure LAMMPS DEM as the scene grows", "",
             (f"`{command}`, " if command else "") + f"{stamp} (each row's date in its last column; rows of other dates come from earlier invocations and code). DEM and hybrid of a row run side by side on the "
             "same LAMMPS ranks, the hybrid's MPM process (its threads) working while LAMMPS waits; a 2-core machine "
-            "that may be shared (compare ratios).", "",
+            "that may be shared (compare ratios). Rows marked 'same minutes' ran their DEM and hybrids interleaved, "
+            "one at a time in quanta of 5 s (tools/hgtools/interleave.py), each timed by its quanta; earlier rows "
+            "ran them one after the other.", "",
             *table(rows), "", "![speedup against size](scale_speed.png)", ""]
     write_report(out, "\n".join(text))
 

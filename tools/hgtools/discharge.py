@@ -66,6 +66,20 @@ def rate_ratio_se(run, reference) -> float:
     return run.rate / reference.rate * float(np.hypot(run.rate_se / run.rate, reference.rate_se / reference.rate))
 
 
+def recorded_time(path: Path) -> float | None:
+    """The time of the last whole row a running discharge record (discharge.dat) holds, s since
+    the opening; None before its first row: how far a running discharge is (the deck appends a
+    row every tout, opening and closing the file, so what is there is on disk)."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        return None
+    for line in reversed(text[:text.rfind("\n") + 1].splitlines()):
+        if line and not line.startswith("#"):
+            return float(line.split()[0])
+    return None
+
+
 def measure(path: Path, mass0: float) -> tuple[dict, np.ndarray]:
     """The figures of a discharge record (path: discharge.dat, rows t, M_in, M_fall, M_del, N_in,
     N_fall, N_del, N_all) for a silo that held mass0: the records, the steady rate of what left
