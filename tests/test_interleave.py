@@ -84,6 +84,33 @@ def test_a_failing_job_stops_the_others_and_is_named(tmp_path):
         assert not running(int((tmp_path / f"{name}.pid").read_text())), name
 
 
+def test_sigterm_to_the_caller_kills_every_job(tmp_path, repo):
+    """A bench told to end (SIGTERM) leaves no job behind, stopped or running: a stopped process
+    would act on the SIGTERM only once continued, and nothing would continue it."""
+    script = f"""
+import sys
+sys.path[:0] = [{str(repo / 'tools')!r}, {str(Path(__file__).parent)!r}]
+from pathlib import Path
+from hgtools.interleave import Terminated, interleave
+from test_interleave import worker_job
+out = Path({str(tmp_path)!r})
+try:
+    interleave([worker_job(n, out / f"{{n}}.txt", 1000, 0.05) for n in ("one", "two")], quantum=0.3)
+except Terminated as e:
+    print(e)
+    sys.exit(3)
+"""
+    caller = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 20
+    while not all((tmp_path / f"{n}.txt").exists() for n in ("one", "two")) and time.monotonic() < deadline:
+        time.sleep(0.1)    # both jobs started: one of them is stopped now
+    caller.terminate()
+    out, _ = caller.communicate(timeout=30)
+    assert caller.returncode == 3 and "SIGTERM while the jobs ran" in out
+    for name in ("one", "two"):
+        assert not running(int((tmp_path / f"{name}.pid").read_text())), name
+
+
 def running(pid: int) -> bool:
     """The process exists and is not a zombie (a killed orphan waits for init to reap it)."""
     try:

@@ -62,6 +62,10 @@ class Outcome:
         return sum(max(0.0, b - max(a, start)) for a, b in self.spans if b > start)
 
 
+class Terminated(Exception):
+    """SIGTERM or SIGHUP reached the process running interleave(): its jobs were killed."""
+
+
 def session_pids(sid: int) -> list[int]:
     """The processes of session `sid` (from /proc)."""
     pids = []
@@ -104,6 +108,8 @@ def start(job: Job, result: Path) -> int:
     status = 1
     try:
         os.setsid()
+        for sig in (signal.SIGTERM, signal.SIGHUP):    # not the parent's handlers (interleave)
+            signal.signal(sig, signal.SIG_DFL)
         payload, status = (True, job.run()), 0
     except BaseException:    # noqa: B036 - reported to the parent, which raises it
         payload = (False, traceback.format_exc())
@@ -115,7 +121,8 @@ def start(job: Job, result: Path) -> int:
 
 def interleave(jobs: list[Job], quantum: float = 5.0, max_stop: float = 120.0, poll: float = 0.1) -> list[Outcome]:
     """Runs `jobs` one at a time in quanta of `quantum` s (module docstring) and returns their
-    outcomes in order; if any job fails, the others are killed and RuntimeError names it."""
+    outcomes in order; if any job fails, the others are killed and RuntimeError names it; SIGTERM
+    or SIGHUP kill them all and raise Terminated. Call it from the main thread (signal handlers)."""
     pids: dict[int, int] = {}
     spans: dict[int, list[tuple[float, float]]] = {i: [] for i in range(len(jobs))}
     ended: dict[int, tuple[int, float, float]] = {}    # job -> (wait status, CPU s, exit time)
@@ -133,8 +140,14 @@ def interleave(jobs: list[Job], quantum: float = 5.0, max_stop: float = 120.0, p
         progress = jobs[i].progress() if i in pids else None
         return (-math.inf if progress is None else progress, sum(b - a for a, b in spans[i]))
 
+    def terminated(signum, _frame):
+        raise Terminated(f"interleave: {signal.Signals(signum).name} while the jobs ran")
+
     with tempfile.TemporaryDirectory(prefix="interleave_") as tmp:
         results = [Path(tmp) / f"job{i}.pickle" for i in range(len(jobs))]
+        # a stopped process acts on SIGTERM only once continued: the jobs must not be left behind
+        # stopped (or running) when this process is told to end
+        previous = {sig: signal.signal(sig, terminated) for sig in (signal.SIGTERM, signal.SIGHUP)}
         try:
             while len(ended) < len(jobs):
                 live = [i for i in range(len(jobs)) if i not in ended]
@@ -160,6 +173,8 @@ def interleave(jobs: list[Job], quantum: float = 5.0, max_stop: float = 120.0, p
                         break
                     current = None
         finally:    # a failure, or an exception here (KeyboardInterrupt): no job outlives the call
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
             killed = [i for i in pids if i not in ended]
             for i in killed:
                 signal_session(pids[i], signal.SIGKILL)
