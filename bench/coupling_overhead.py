@@ -121,6 +121,16 @@ def parse_log(text: str) -> dict:
             # Section | min | avg | max | %varavg | %total ("Other" has min, max empty)
             sections[name] = float(cols[1]) if cols[1] else None
     out["sections"] = sections
+    # the fix's own timing block of the same run (printed before its Loop line): where its time in
+    # Modify went, the ranks' mean (coupler/coupling_timer.hpp: Exchange = its own work around the
+    # round trip, MPM wait, Apply = the grains' velocity updates)
+    run_text = text[loops[-2].end() if len(loops) > 1 else 0:last.start()]
+    fix = {}
+    for name in ("Exchange", "MPM wait", "Apply", "Rezone", "Oracle", "Output", "Coupling"):
+        m = re.search(rf"^{name}\s*\|([^\n]*)$", run_text, re.M)
+        if m:
+            fix[name] = float(m.group(1).split("|")[1])
+    out["fix_sections"] = fix
     # the pair style loops over the neighbour list's pairs and computes forces for the touching ones
     m = re.search(r"^Total # of neighbors = (\d+)", tail, re.M)
     out["neighbor_pairs"] = int(m.group(1)) if m else None
@@ -476,6 +486,12 @@ def main() -> int:
         s["overhead_fastest"] = min(s["step_ms_all"]) / min(base["step_ms_all"]) - 1.0
         s["fix_ms_per_step"] = s["modify_ms"] - base["modify_ms"]
         s["fix_ms_per_exchange"] = s["fix_ms_per_step"] * case["every"]
+        # the fix's own ledger of it: its work (Exchange + Apply) and the MPM wait, per exchange
+        exchanges = [r["steps"] / case["every"] for r in rs]
+        for key, names in (("fix_work_ms_per_exchange", ("Exchange", "Apply")), ("mpm_wait_ms_per_exchange", ("MPM wait",))):
+            values = [1e3 * sum(r.get("fix_sections", {}).get(n, 0.0) for n in names) / e for r, e in zip(rs, exchanges)
+                      if r.get("fix_sections")]
+            s[key] = med(values) if values else None
         s["pair_change"] = s["pair_ms"] / base["pair_ms"] - 1.0
 
     # ---- build state (others may be rebuilding build/ from an edited tree; the runs used copies)
@@ -527,6 +543,8 @@ def main() -> int:
                                for p, d in zip(s["overhead_paired"], s["overhead_paired_disturbed"]))
             ovh = f"**{100 * s['overhead']:+.1f} %** ({paired} %; fastest runs {100 * s['overhead_fastest']:+.1f} %)"
             fix = f"{s['fix_ms_per_exchange']:.3f} ms"
+            if s.get("fix_work_ms_per_exchange") is not None:
+                fix += f" ({s['fix_work_ms_per_exchange']:.3f} own work, {s['mpm_wait_ms_per_exchange']:.3f} MPM wait)"
             factor = s["overhead"] / TARGET
             verdict = "met" if s["overhead"] <= TARGET else f"{factor:.1f}x the target"
             verdicts.append(f"every {case['every']}{ranks}: {100 * s['overhead']:+.1f} % ({verdict})")
@@ -546,7 +564,9 @@ def main() -> int:
     lines += ["", "Modify is the LAMMPS timer section that holds the fixes (here nve/sphere, gravity, wall/gran, "
               "enforce2d and, coupled, hybrid/mpm, whose exchange runs in end_of_step and includes the wait for "
               "the MPM process); the fix cost per exchange is the coupled minus the uncoupled Modify time per step, "
-              "times the exchange interval. 'LAMMPS CPU use' is LAMMPS's own figure (CPU time over wall time): "
+              "times the exchange interval; in brackets the fix's own ledger of it (its timing block, the ranks' "
+              "mean): its own work (checks, the grains' node sums, the coupled grains, the velocity updates) and the "
+              "wait for the MPM process's reply. 'LAMMPS CPU use' is LAMMPS's own figure (CPU time over wall time): "
               "below 100 % the rank slept (waiting) or was descheduled. 'contacts' are the touching grain pairs "
               "(mean over 11 thermo steps of the timed run, median over the runs), 'neighbour pairs' LAMMPS's "
               "'Total # of neighbors' at the end of the timed run: the pair style visits every neighbour pair and "
