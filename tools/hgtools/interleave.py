@@ -13,6 +13,11 @@ progress share the machine in turns. A job's time is the sum of its running quan
 `Outcome.running` converts a wall interval the job measured itself (a run's wall or loop time, which
 count the stops) to running time.
 
+It evens out the machine's speed over time (other guests of its host, its clock), not a process on
+this machine competing for the cores: that slows two LAMMPS ranks stepping in lockstep more than a
+run whose ranks wait for an MPM process. The 40 d silo timed beside the test suite gave its hybrid
+1.94x and 2.21x, alone 1.41x and 1.35x (2026-11-28): run benchmarks alone all the same.
+
 A stopped coupled run must not take the stop for a dead peer: the fix's reply timeout (keyword
 `timeout`, 30 s by default) and the MPM process's idle timeout (600 s) must exceed the longest
 stop, `max_stop`, after which a job runs a quantum whatever its progress.
