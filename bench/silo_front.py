@@ -15,7 +15,7 @@ packing's DEM is not timed: it gives the noise floor, the rate difference betwee
 
 Usage: bench/silo_front.py [--width-d 40] [--depths 12,24] [--cells 2,1] [--models drucker_prager,mu_i]
                            [--noise-seed 2] [--np 2] [--threads 2] [--tdis 1.0]
-Writes bench/results/silo_front.{json,md,png} (the notes below the marker kept).
+Writes bench/results/silo_front_<W>.{json,md,png}, W the width in d (the notes below the marker kept).
 """
 from __future__ import annotations
 
@@ -138,9 +138,11 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=12345)
     ap.add_argument("--hcell", default="0", help="the hybrid's cell, m, or 0 (the fix's, from the grains)")
     ap.add_argument("--work", type=Path, default=REPO / "runs" / "silo_front")
-    ap.add_argument("--out", type=Path, default=RESULTS / "silo_front.md")
+    ap.add_argument("--out", type=Path, default=None, help="the report (default bench/results/silo_front_<W>.md)")
     ap.add_argument("--render", action="store_true", help="only write the report and the plot again from the JSON")
     a = ap.parse_args()
+    if a.out is None:
+        a.out = RESULTS / f"silo_front_{a.width_d}.md"
     if a.render:
         saved = json.loads(a.out.with_suffix(".json").read_text())
         write(saved, a.out)

@@ -184,8 +184,8 @@ void FixHybridMPM::init()
 
 int FixHybridMPM::modify_param(int narg, char **arg)
 {
-  // fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g), and
-  // fix_modify ID rezone_log full|summary|quiet: between runs
+  // fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g),
+  // fix_modify ID pic x and fix_modify ID rezone_log full|summary|quiet: between runs
   if (narg < 2) return 0;
   try {
     return coupler::modify_option(*opt, arg[0], arg[1], domain->dimension) ? 2 : 0;

@@ -49,6 +49,10 @@ double within(const std::string &key, const std::string &val, bool ok(double), c
   return v;
 }
 
+double pic_option(const std::string &val) {
+  return within("pic", val, [](double v) { return v >= 0.0 && v <= 1.0; }, "keyword 'pic' must be in [0, 1], not ");
+}
+
 }    // namespace
 
 bool set_oracle_option(OracleSettings &oracle, const std::string &key, const std::string &val) {
@@ -270,6 +274,11 @@ bool modify_option(FixOptions &o, const std::string &key, const std::string &val
     o.rezone_log = rezone_log_option(value);
     return true;
   }
+  if (key == "pic") {    // the grain update is the DEM side's alone: it may change between runs
+    o.continuum.pic = pic_option(value);
+    o.pic_given = true;
+    return true;
+  }
   if (!set_oracle_option(o.oracle, key, value)) return false;
   check_oracle_options(o, dimension);
   return true;
@@ -363,7 +372,7 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
       c.cfl = within(key, val, [](double v) { return v > 0.0 && v <= 1.0; }, "keyword 'cfl' must be in (0, 1], not ");
     else if (key == "pic") {
       o.pic_given = true;
-      c.pic = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; }, "keyword 'pic' must be in [0, 1], not ");
+      c.pic = pic_option(val);
     } else if (key == "support")
       c.support_gain = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; },
                               "keyword 'support' (gain of the support force between exchanges) must be in [0, 1], "

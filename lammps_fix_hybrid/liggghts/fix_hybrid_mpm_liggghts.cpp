@@ -337,8 +337,8 @@ void FixHybridMPMLiggghts::post_run()
   if (link) print_timing_breakdown();
 }
 
-// fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g), and
-// fix_modify ID rezone_log full|summary|quiet: between runs (as on LAMMPS)
+// fix_modify ID depth L (band h, surface_packing phi, dilute phi, shear_rate g), fix_modify
+// ID pic x and fix_modify ID rezone_log full|summary|quiet: between runs (as on LAMMPS)
 int FixHybridMPMLiggghts::modify_param(int narg, char **arg)
 {
   if (narg < 2) return 0;

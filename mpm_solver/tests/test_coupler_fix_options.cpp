@@ -102,6 +102,13 @@ TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {
   EXPECT_THROW(coupler::set_oracle_option(o.oracle, "surface_packing", "1"), coupler::OptionError);
   o.oracle.band = 0.001;
   EXPECT_THROW(coupler::check_oracle_options(o, 2), coupler::OptionError);
+  // fix_modify's pic (the DEM side's grain update), with the fix line's check
+  auto m = parse("cell 0.01 adaptive 100 every 10");
+  EXPECT_TRUE(coupler::modify_option(m, "pic", "1", 2));
+  EXPECT_DOUBLE_EQ(m.continuum.pic, 1.0);
+  EXPECT_THROW(coupler::modify_option(m, "pic", "1.5", 2), coupler::OptionError);
+  EXPECT_DOUBLE_EQ(m.continuum.pic, 1.0);
+  EXPECT_FALSE(coupler::modify_option(m, "every", "5", 2));
 }
 
 TEST(FixOptions, BadLinesNameTheKeyword) {

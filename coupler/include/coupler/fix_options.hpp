@@ -156,9 +156,9 @@ std::string resolve_exchange_interval(FixOptions &options, double dem_dt);
 /// rezone_log's value (OptionError for another).
 RezoneLog rezone_log_option(const std::string &value);
 
-/// A keyword a host's fix_modify may change between runs: rezone_log and the zone oracle's
-/// (set_oracle_option, then check_oracle_options). False if `key` is none of them; OptionError
-/// for a bad value.
+/// A keyword a host's fix_modify may change between runs: rezone_log, pic (the grain update, the
+/// DEM side's alone) and the zone oracle's (set_oracle_option, then check_oracle_options). False
+/// if `key` is none of them; OptionError for a bad value.
 bool modify_option(FixOptions &options, const std::string &key, const std::string &value, int dimension);
 
 }    // namespace coupler
