@@ -70,7 +70,7 @@ class HelloReply(C.Structure):
 class StepHeader(C.Structure):
     _fields_ = [("step", C.c_int64), ("time", C.c_double), ("dt", C.c_double), ("kind", C.c_int32),
                 ("output", C.c_int32), ("n_grains", C.c_int64), ("next_time", C.c_double),
-                ("zone_source", C.c_int32), ("pad", C.c_int32)]
+                ("zone_source", C.c_int32), ("field_shares", C.c_int32)]
 
 
 class StepAck(C.Structure):   # only the leading fields are read; the size is checked

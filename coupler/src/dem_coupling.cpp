@@ -41,19 +41,23 @@ StepOutcome exchange_grains(DemSession &session, MPI_Comm comm, GrainTransfer<D>
   std::int64_t local = static_cast<std::int64_t>(index.size());
   MPI_Allreduce(&local, &tally.coupled, 1, MPI_INT64_T, MPI_SUM, comm);
   header.n_grains = tally.coupled;
+  const bool regime = pic == kPicRegime;  // the MPM process answers each node's share
+  header.field_shares = regime ? 1 : 0;
 
   // the agreed node velocities: each coupled grain's velocity update and support acceleration
   auto apply = [&](const std::vector<NodeUpdate> &updates) {
     const double t0 = MPI_Wtime();
     std::vector<AgreedNode<D>> agreed(updates.size());
-    for (std::size_t k = 0; k < updates.size(); ++k)
+    for (std::size_t k = 0; k < updates.size(); ++k) {
       for (int a = 0; a < D; ++a) {
         agreed[k].velocity[a] = updates[k].velocity[a];
         agreed[k].impulse_per_mass[a] = updates[k].impulse_per_mass[a];
         agreed[k].support[a] = updates[k].support[a];
       }
+      agreed[k].field_share = regime ? updates[k].field_share : pic;
+    }
     std::vector<double> dv(index.size() * D), accel(index.size() * D);
-    transfer.velocity_updates(view, agreed, pic, dv.data(), accel.data());
+    transfer.velocity_updates(view, agreed, dv.data(), accel.data());
     for (int i : supported) support[i][0] = support[i][1] = support[i][2] = 0.0;
     supported.clear();
     for (std::size_t k = 0; k < index.size(); ++k) {

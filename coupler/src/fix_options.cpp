@@ -50,7 +50,9 @@ double within(const std::string &key, const std::string &val, bool ok(double), c
 }
 
 double pic_option(const std::string &val) {
-  return within("pic", val, [](double v) { return v >= 0.0 && v <= 1.0; }, "keyword 'pic' must be in [0, 1], not ");
+  if (val == "regime") return kPicRegime;
+  return within("pic", val, [](double v) { return v >= 0.0 && v <= 1.0; },
+                "keyword 'pic' must be in [0, 1] or 'regime' (each node's share from the flow there), not ");
 }
 
 }    // namespace
@@ -438,8 +440,10 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
   check_oracle_options(o, dimension);
   // With moving zones the hybrid band lies inside the flow: taking the agreed field there
   // (pic 1) erases the grains' fluctuations at every exchange and damps the flow (a column
-  // collapse ran out 35 % short); the impulse-only rule of docs/design.md section 5 keeps them.
-  if (o.adaptive() && !o.pic_given) c.pic = 0.0;
+  // collapse ran out 35 % short), while the impulse rule (pic 0) leaves the hybrid grains of a
+  // settling deposit wandering (1.7-2.2x the DEM's steps to rest). Each node's rule from the
+  // flow regime there does both (docs/design.md section 5.3).
+  if (o.adaptive() && !o.pic_given) c.pic = kPicRegime;
   if (o.grain_type > ntypes)
     illegal("keyword 'grain_type' " + std::to_string(o.grain_type) + " is not an atom type (1 to " +
             std::to_string(ntypes) + ")");

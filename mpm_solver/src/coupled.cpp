@@ -87,7 +87,8 @@ std::string check_hello(const coupler::Hello& h) {
   if (!(c.cfl > 0 && c.cfl <= 1)) return "the Courant number cfl must be in (0, 1] (got " + std::to_string(c.cfl) + ")";
   if (!(c.grain_weight > 0 && c.grain_weight < 1))
     return "the grain weight must be between 0 and 1 (got " + std::to_string(c.grain_weight) + ")";
-  if (!(c.pic >= 0 && c.pic <= 1)) return "pic must be in [0, 1] (got " + std::to_string(c.pic) + ")";
+  if (!(c.pic >= 0 && c.pic <= 1) && c.pic != coupler::kPicRegime)
+    return "pic must be in [0, 1] or 'regime' (got " + std::to_string(c.pic) + ")";
   if (!(c.support_gain >= 0 && c.support_gain <= 1))
     return "the support gain must be in [0, 1] (got " + std::to_string(c.support_gain) + ")";
   if (!(c.agreement_time >= 0) || !std::isfinite(c.agreement_time))
@@ -447,7 +448,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         try {
           fault.check("exchange", h.step);
           built->advance_to(h.time);
-          const auto replies = built->agree(nodes);
+          const auto replies = built->agree(nodes, h.field_shares != 0);
           for (int r = 0; r < link.remote_size(); ++r)
             link.send_array(r, coupler::kTagNodeReply, replies[r], "the node velocities" + at);
           ack = built->grid_totals(h.step);

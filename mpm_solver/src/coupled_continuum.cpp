@@ -6,6 +6,7 @@
 #include <map>
 #include <sstream>
 
+#include "coupler/flow_regime.hpp"
 #include "coupler/oracle.hpp"
 #include "coupler/stencil.hpp"
 #include "coupler/support_force.hpp"
@@ -530,8 +531,31 @@ void CoupledContinuum<D>::advance_to(double time) {
 }
 
 template <int D>
+std::vector<double> CoupledContinuum<D>::touched_field_shares() const {
+  // mass-weighted over the points of the current substep's P2G: sum_p N_ip m_p share(I_p) / sum_p N_ip m_p
+  std::vector<double> share(touched_.size(), 0.0), mass(touched_.size(), 0.0);
+  const auto& pts = solver_.points();
+  const Grid<D>& grid = solver_.grid();
+  const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(grid);
+  const double d = hello_.continuum.grain_diameter, rho = hello_.continuum.grain_density;
+  for (std::size_t p = 0; p < pts.size(); ++p) {
+    double q = -1;  // computed on the first touched node of the point's stencil
+    coupler::for_each_stencil_node<D>(coupler::QuadraticStencil<D>(grid.to_cell_units(pts.x[p])), geometry,
+                                      [&](std::size_t k, double w, const auto&) {
+                                        const std::int64_t t = touched_slot_[k];
+                                        if (t < 0 || w <= 0) return;
+                                        if (q < 0) q = coupler::field_share(coupler::inertial_number<D>(pts.C[p], pts.stress[p], d, rho));
+                                        share[t] += w * pts.mass[p] * q;
+                                        mass[t] += w * pts.mass[p];
+                                      });
+  }
+  for (std::size_t t = 0; t < share.size(); ++t) share[t] = mass[t] > 0 ? share[t] / mass[t] : 0.0;
+  return share;
+}
+
+template <int D>
 std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
-    const std::vector<std::vector<coupler::NodeRecord>>& per_rank) {
+    const std::vector<std::vector<coupler::NodeRecord>>& per_rank, bool field_shares) {
   Grid<D>& grid = solver_.grid();
   const std::size_t n_nodes = grid.num_nodes();
   // Every record is checked before any is added: a bad one leaves the node sums untouched.
@@ -616,6 +640,7 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   }
   ledger_.agreement += agreement_change;
   ledger_.energy = energy_before + agreement_change;
+  const std::vector<double> shares = field_shares ? touched_field_shares() : std::vector<double>{};
   std::vector<std::vector<coupler::NodeUpdate>> replies(per_rank.size());
   for (std::size_t r = 0; r < per_rank.size(); ++r) {
     replies[r].resize(per_rank[r].size());
@@ -628,6 +653,7 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
         u.impulse_per_mass[a] = impulse_per_mass[t][a];
         u.support[a] = support[t][a];
       }
+      if (field_shares) u.field_share = shares[t];
     }
   }
   for (std::size_t k : touched_) {

@@ -89,9 +89,11 @@ TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {
   EXPECT_DOUBLE_EQ(o.oracle.free_surface_depth(), 0.03);    // no surface_depth: the depth
   EXPECT_DOUBLE_EQ(parse("cell 0.01 adaptive 100 surface_depth 0.02").oracle.free_surface_depth(), 0.02);
   EXPECT_DOUBLE_EQ(parse("cell 0.01 adaptive 100 surface_depth 0.02").oracle.continuum_depth, 0.03);
-  EXPECT_DOUBLE_EQ(o.continuum.pic, 0.0);    // the impulse rule where the band lies in the flow
+  EXPECT_EQ(o.continuum.pic, coupler::kPicRegime);    // each node's rule from the flow there
   EXPECT_EQ(o.continuum.touched_faces, coupler::face_bit(0, 0) | coupler::face_bit(1, 0));
   EXPECT_DOUBLE_EQ(parse("cell 0.01 adaptive 100 every 10 pic 0.5").continuum.pic, 0.5);
+  EXPECT_EQ(parse("cell 0.01 adaptive 100 pic regime").continuum.pic, coupler::kPicRegime);
+  EXPECT_THROW(parse("cell 0.01 pic regimes"), coupler::OptionError);
   EXPECT_EQ(parse("cell 0.01 adaptive 10 touch all", 3).continuum.touched_faces, 63u);
   // fix_modify's oracle keywords: false for others, the same checks
   EXPECT_TRUE(coupler::set_oracle_option(o.oracle, "depth", "0.05"));
@@ -108,6 +110,8 @@ TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {
   EXPECT_DOUBLE_EQ(m.continuum.pic, 1.0);
   EXPECT_THROW(coupler::modify_option(m, "pic", "1.5", 2), coupler::OptionError);
   EXPECT_DOUBLE_EQ(m.continuum.pic, 1.0);
+  EXPECT_TRUE(coupler::modify_option(m, "pic", "regime", 2));
+  EXPECT_EQ(m.continuum.pic, coupler::kPicRegime);
   EXPECT_FALSE(coupler::modify_option(m, "every", "5", 2));
 }
 

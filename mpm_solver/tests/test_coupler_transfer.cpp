@@ -2,8 +2,11 @@
 // sides exactly and makes them agree at every shared node.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
+#include "coupler/flow_regime.hpp"
+#include "coupler/protocol.hpp"
 #include "coupler/transfer.hpp"
 
 namespace {
@@ -85,16 +88,19 @@ void agreement_conserves_and_agrees() {
     EXPECT_LE((mpm_after + dem_after - p_mpm[i] - dem[i].momentum).norm(), 1e-15 * scale);
   }
 
-  // Both grain updates (impulse, field) and their blend carry exactly sum(lambda) into the
-  // weighted grain momentum; the field update leaves each grain at the interpolated field.
+  // Both grain updates (impulse, field), their blend and a blend that differs from node to node
+  // (pic regime) carry exactly sum(lambda) into the weighted grain momentum; the field update
+  // leaves each grain at the interpolated field.
   std::vector<coupler::AgreedNode<D>> agreed(dem.size());
   for (std::size_t i = 0; i < dem.size(); ++i) {
     agreed[i].velocity = (p_mpm[i] + dem[i].momentum) / (m_mpm[i] + dem[i].mass);
     agreed[i].impulse_per_mass = lambda[i] / dem[i].mass;
   }
-  for (double pic : {0.0, 0.3, 1.0}) {
+  for (double pic : {0.0, 0.3, 1.0, coupler::kPicRegime}) {
+    for (std::size_t i = 0; i < dem.size(); ++i)  // per node: shares spread over [0, 1]
+      agreed[i].field_share = pic == coupler::kPicRegime ? std::fmod(0.618 * static_cast<double>(i), 1.0) : pic;
     std::vector<double> dv(view.count * D);
-    transfer.velocity_updates(view, agreed, pic, dv.data());
+    transfer.velocity_updates(view, agreed, dv.data());
     V p_after = V::Zero();
     for (std::size_t g = 0; g < view.count; ++g)
       p_after += s.weight[g] * s.mass[g] * (Eigen::Map<const V>(&s.v[g * 3]) + Eigen::Map<const V>(&dv[g * D]));
@@ -120,3 +126,28 @@ void agreement_conserves_and_agrees() {
 
 TEST(CouplerTransfer, AgreementConservesWeightedMomentum2D) { agreement_conserves_and_agrees<2>(); }
 TEST(CouplerTransfer, AgreementConservesWeightedMomentum3D) { agreement_conserves_and_agrees<3>(); }
+
+TEST(CouplerFlowRegime, InertialNumberAndFieldShare) {
+  // simple shear at rate 2 /s under pressure 100 Pa: I = gammadot d sqrt(rho / p)
+  Eigen::Matrix2d L;
+  L << 0, 2.0, 0, 0;
+  const Eigen::Matrix2d stress = -100.0 * Eigen::Matrix2d::Identity();
+  const double I = coupler::inertial_number<2>(L, stress, 1e-3, 2500.0);
+  EXPECT_NEAR(I, 2.0 * 1e-3 * std::sqrt(25.0), 1e-15);
+  // a uniform expansion has no shear; a spin neither
+  Eigen::Matrix3d dilation = Eigen::Matrix3d::Identity(), spin = Eigen::Matrix3d::Zero();
+  spin(0, 1) = 1.0, spin(1, 0) = -1.0;
+  EXPECT_EQ(coupler::inertial_number<3>(dilation, -Eigen::Matrix3d::Identity(), 1e-3, 2500.0), 0.0);
+  EXPECT_EQ(coupler::inertial_number<3>(spin, -Eigen::Matrix3d::Identity(), 1e-3, 2500.0), 0.0);
+  // no pressure: free when shearing, at rest when not
+  EXPECT_EQ(coupler::inertial_number<2>(L, Eigen::Matrix2d::Zero(), 1e-3, 2500.0), HUGE_VAL);
+  EXPECT_EQ(coupler::inertial_number<2>(Eigen::Matrix2d::Zero(), Eigen::Matrix2d::Zero(), 1e-3, 2500.0), 0.0);
+  // the field rule where quasi-static, the impulse rule where flowing, log-linear between
+  EXPECT_EQ(coupler::field_share(0.0), 1.0);
+  EXPECT_EQ(coupler::field_share(coupler::kQuasiStaticInertialNumber), 1.0);
+  EXPECT_NEAR(coupler::field_share(std::sqrt(coupler::kQuasiStaticInertialNumber * coupler::kFlowingInertialNumber)),
+              0.5, 1e-12);
+  EXPECT_EQ(coupler::field_share(coupler::kFlowingInertialNumber), 0.0);
+  EXPECT_EQ(coupler::field_share(HUGE_VAL), 0.0);
+  EXPECT_LT(coupler::field_share(4e-3), coupler::field_share(2e-3));
+}

@@ -33,7 +33,9 @@ struct ExchangeTally {
 /// One coupling exchange. `index`: this rank's coupled grains (coupled_grains); `header` is
 /// sent with n_grains set to their count over the ranks. The agreed velocities change g.v;
 /// support[i] becomes each coupled grain's support acceleration (zero for the others that had
-/// one) and `supported` lists the grains with a non-zero one. Local outcome (settle it).
+/// one) and `supported` lists the grains with a non-zero one. `pic`: the share of the field
+/// rule at every node, or kPicRegime to take each node's from the MPM process's answer (the
+/// flow regime there). Local outcome (settle it).
 template <int D>
 StepOutcome exchange_grains(DemSession &session, MPI_Comm comm, GrainTransfer<D> &transfer, const DemGrains &g,
                             const std::vector<int> &index, StepHeader header, double pic, double **support,

@@ -84,6 +84,10 @@ inline constexpr int kVersionSize = 32;
 /// Wall condition of the continuum at the faces of the DEM box.
 enum WallContact : std::int32_t { kWallSticky = 0, kWallSlip = 1, kWallFriction = 2 };
 
+/// ContinuumSettings::pic of `pic regime`: each node's share of the field rule from the flow
+/// regime there (coupler/flow_regime.hpp), answered by the MPM process at every exchange.
+inline constexpr double kPicRegime = -1.0;
+
 /// The continuum the MPM process builds, from the fix line (part of Hello).
 struct ContinuumSettings {
   double youngs_modulus = 1.0e7;      ///< Pa
@@ -106,7 +110,9 @@ struct ContinuumSettings {
   std::int32_t pad1 = 0;
   double cfl = 0.5;                   ///< MPM substep = cfl * dx / (c + |v|max)
   double grain_weight = 0.5;          ///< share of a hybrid cell's mass its grains keep
-  double pic = 1.0;                   ///< grain update: 1 = take the agreed field, 0 = impulse only
+  /// grain update: 1 = take the agreed field, 0 = impulse only, kPicRegime = per node from the
+  /// flow regime (the DEM side's choice; the MPM process only checks it)
+  double pic = 1.0;
   /// s: the agreement closes the sides' velocity gap by 1 - exp(-T / agreement_time) over an
   /// exchange interval T (0 = all of it at every exchange)
   double agreement_time = 0.0;
@@ -246,7 +252,9 @@ struct StepHeader {
   /// before it), else -1: the MPM process may advance to it while LAMMPS computes its steps.
   double next_time = -1;
   std::int32_t zone_source = kZonesOracle;  ///< kStepRezone: ZoneSource
-  std::int32_t pad = 0;
+  /// kStepCouple: 1 = answer each node's field share from the local flow regime
+  /// (NodeUpdate::field_share; the fix's `pic regime`), 0 = the DEM side uses its own pic
+  std::int32_t field_shares = 0;
 };
 
 /// MPM -> every DEM rank: the end of an exchange, with the continuum's totals.
@@ -291,6 +299,9 @@ struct NodeUpdate {
   double velocity[3] = {0, 0, 0};
   double impulse_per_mass[3] = {0, 0, 0};
   double support[3] = {0, 0, 0};     ///< support force F_i / m_dem_i until the next exchange, m/s^2
+  /// Share of the field rule in the node's grain update from the continuum's flow regime
+  /// there (coupler/flow_regime.hpp), when StepHeader::field_shares asked for it; else 0
+  double field_share = 0;
 };
 
 /// DEM rank -> MPM at output frames: one grain.

@@ -69,6 +69,7 @@ struct AgreedNode {
   Eigen::Matrix<double, D, 1> velocity = Eigen::Matrix<double, D, 1>::Zero();  ///< common node velocity
   Eigen::Matrix<double, D, 1> impulse_per_mass = Eigen::Matrix<double, D, 1>::Zero();  ///< lambda_i / m_dem_i
   Eigen::Matrix<double, D, 1> support = Eigen::Matrix<double, D, 1>::Zero();  ///< F_i / m_dem_i
+  double field_share = 0;  ///< pi_i: share of the field rule in the update of the node's grains
 };
 
 /// Transfers between grains and the nodes of the shared grid, with per-node scratch kept
@@ -108,28 +109,29 @@ class GrainTransfer {
     return nodes_;
   }
 
-  /// Velocity change of each grain after the agreement, blending two updates that both add
-  /// exactly sum_i lambda_i to the weighted grain momentum:
-  ///   impulse (pic = 0):  dv_g = sum_i N_ig lambda_i / m_dem_i   (docs/design.md section 5)
-  ///   field   (pic = 1):  dv_g = sum_i N_ig v_i - v_g            (the grain takes the agreed field)
-  /// The field update conserves because sum_g w_g m_g N_ig = m_dem_i and sum_i N_ig = 1.
+  /// Velocity change of each grain after the agreement, blending per node two updates that both
+  /// add exactly lambda_i to the weighted grain momentum at node i:
+  ///   impulse (pi_i = 0):  dv_g = sum_i N_ig lambda_i / m_dem_i   (docs/design.md section 5.3)
+  ///   field   (pi_i = 1):  dv_g = sum_i N_ig (v_i - v_g)          (the grain takes the agreed field)
+  /// with pi_i = AgreedNode::field_share. The field part conserves node by node because
+  /// sum_g w_g m_g N_ig (v_i - v_g) = m_dem_i v_i - p_dem_i = lambda_i, so any pi_i does.
   /// `agreed` holds the answers for the nodes of the last to_nodes() in its order; m_dem_i in
   /// lambda_i / m_dem_i is the node's DEM mass over all DEM ranks. Writes grains.count * D
   /// values to dv and, if `support` is given, the acceleration sum_i N_ig F_i / m_dem_i each
   /// grain gets until the next exchange (whose impulse over the grains, sum_g w_g m_g a_g, is
   /// exactly sum_i F_i, as for lambda). The grains must be those of the last to_nodes().
-  void velocity_updates(const GrainView& grains, const std::vector<AgreedNode<D>>& agreed, double pic, double* dv,
+  void velocity_updates(const GrainView& grains, const std::vector<AgreedNode<D>>& agreed, double* dv,
                         double* support = nullptr) const {
     for (std::size_t g = 0; g < grains.count; ++g) {
-      V impulse = V::Zero(), field = V::Zero(), accel = V::Zero();
+      V change = V::Zero(), accel = V::Zero();
+      double field = 0;  // sum_i N_ig pi_i
       detail::for_each_node<D>(grid_, detail::read<D>(grains.x, g, grains.stride), [&](std::size_t node, double w) {
         const AgreedNode<D>& a = agreed[static_cast<std::size_t>(slot_[node])];
-        impulse += w * a.impulse_per_mass;
-        field += w * a.velocity;
+        change += w * ((1.0 - a.field_share) * a.impulse_per_mass + a.field_share * a.velocity);
+        field += w * a.field_share;
         accel += w * a.support;
       });
-      const V v = detail::read<D>(grains.v, g, grains.stride);
-      Eigen::Map<V>(dv + g * D) = (1.0 - pic) * impulse + pic * (field - v);
+      Eigen::Map<V>(dv + g * D) = change - field * detail::read<D>(grains.v, g, grains.stride);
       if (support != nullptr) Eigen::Map<V>(support + g * D) = accel;
     }
   }

@@ -13,7 +13,7 @@
 
 namespace coupler::wire_layout {
 
-static_assert(kProtocolVersion == 9, "the layouts below are those of protocol 9: update them with the version");
+static_assert(kProtocolVersion == 10, "the layouts below are those of protocol 10: update them with the version");
 
 #define COUPLER_WIRE_SIZE(T, size)                                                                     \
   static_assert(std::is_standard_layout_v<T> && std::is_trivially_copyable_v<T>,                      \
@@ -94,7 +94,7 @@ COUPLER_WIRE_FIELD(StepHeader, output, 28, 4);
 COUPLER_WIRE_FIELD(StepHeader, n_grains, 32, 8);
 COUPLER_WIRE_FIELD(StepHeader, next_time, 40, 8);
 COUPLER_WIRE_FIELD(StepHeader, zone_source, 48, 4);
-COUPLER_WIRE_FIELD(StepHeader, pad, 52, 4);
+COUPLER_WIRE_FIELD(StepHeader, field_shares, 52, 4);
 
 COUPLER_WIRE_SIZE(StepAck, 520);
 COUPLER_WIRE_FIELD(StepAck, step, 0, 8);
@@ -126,10 +126,11 @@ COUPLER_WIRE_FIELD(NodeRecord, node, 0, 8);
 COUPLER_WIRE_FIELD(NodeRecord, mass, 8, 8);
 COUPLER_WIRE_FIELD(NodeRecord, momentum, 16, 24);
 
-COUPLER_WIRE_SIZE(NodeUpdate, 72);
+COUPLER_WIRE_SIZE(NodeUpdate, 80);
 COUPLER_WIRE_FIELD(NodeUpdate, velocity, 0, 24);
 COUPLER_WIRE_FIELD(NodeUpdate, impulse_per_mass, 24, 24);
 COUPLER_WIRE_FIELD(NodeUpdate, support, 48, 24);
+COUPLER_WIRE_FIELD(NodeUpdate, field_share, 72, 8);
 
 COUPLER_WIRE_SIZE(GrainRecord, 88);
 COUPLER_WIRE_FIELD(GrainRecord, id, 0, 8);

@@ -51,7 +51,10 @@ class CoupledContinuum {
   void advance_to(double time);
   /// The velocity agreement on the nodes the DEM ranks sent (NodeRecord lists, one per
   /// rank); returns the answers in the same order. Call between advance_to and complete_step.
-  std::vector<std::vector<coupler::NodeUpdate>> agree(const std::vector<std::vector<coupler::NodeRecord>>& per_rank);
+  /// With field_shares, each answer also carries the node's share of the field rule from the
+  /// continuum's flow regime there (coupler/flow_regime.hpp).
+  std::vector<std::vector<coupler::NodeUpdate>> agree(const std::vector<std::vector<coupler::NodeRecord>>& per_rank,
+                                                      bool field_shares = false);
   /// The continuum's totals from the agreed grid: what the points hold after complete_step
   /// (APIC's G2P keeps mass, momentum and angular momentum), known before it runs.
   coupler::StepAck grid_totals(std::int64_t step) const;
@@ -129,6 +132,8 @@ class CoupledContinuum {
   std::vector<double> dem_mass_;      ///< scratch: DEM node mass, touched nodes only
   std::vector<Vec<D>> dem_momentum_;
   std::vector<std::size_t> touched_;
+  /// The field shares of the touched nodes (touched_ order), from the points' inertial numbers.
+  std::vector<double> touched_field_shares() const;
   std::vector<std::int64_t> touched_slot_;  ///< node -> index in touched_, -1 if untouched
   double interval_ = 0;               ///< time since the previous exchange, s
   std::vector<coupler::SupportNode<D>> support_;  ///< each node's support force until the next exchange
