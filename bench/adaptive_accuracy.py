@@ -241,7 +241,8 @@ def write(args, rows: list[dict]) -> None:
              f"{args.np_} LAMMPS rank(s) for DEM and hybrid alike, plus one MPM process for the hybrid, "
              "on a 2-core machine, side by side in one run. Errors are the hybrid's against the DEM from the same "
              "packing; the noise floor is the DEM from another packing against it (same measure). The hybrid "
-             "runs with the fix's defaults (adaptive zones, pic 0) and the decks' material.", ""]
+             "runs with the fix's defaults of its row's date (adaptive zones; the grain update pic 0 until "
+             "2026-11-29, pic regime since) and the decks' material.", ""]
     lines += table([r for r in rows if "failed" not in r])
     lines += [f"\n{r['scene']} failed: {r['failed'][:300]}" for r in rows if "failed" in r]
     lines += ["", "Targets (issue 14): runout within 5 %, final surface <= 3 % of H0, KE history <= 5 %, steps to "
