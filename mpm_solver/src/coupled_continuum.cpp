@@ -531,24 +531,42 @@ void CoupledContinuum<D>::advance_to(double time) {
 }
 
 template <int D>
-std::vector<double> CoupledContinuum<D>::touched_field_shares() const {
+std::vector<double> CoupledContinuum<D>::touched_field_shares() {
   // mass-weighted over the points of the current substep's P2G: sum_p N_ip m_p share(I_p) / sum_p N_ip m_p
   std::vector<double> share(touched_.size(), 0.0), mass(touched_.size(), 0.0);
   const auto& pts = solver_.points();
   const Grid<D>& grid = solver_.grid();
   const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(grid);
+  // The stencil bases that reach a touched node (the node less 0-2 cells per axis), so that only
+  // the points of the band and its edge are visited in full: this runs on the exchange's
+  // critical path, and the band is a small part of a large continuum.
+  if (reaching_base_.size() != grid.num_nodes()) reaching_base_.assign(grid.num_nodes(), 0);
+  std::vector<std::size_t> marked;
+  constexpr int kStencilNodes = D == 2 ? 9 : 27;
+  for (std::size_t k : touched_) {
+    const auto node = geometry.node_of(k);
+    for (int o = 0; o < kStencilNodes; ++o) {
+      auto base = node;
+      bool on_grid = true;
+      for (int a = 0, rest = o; a < D; ++a, rest /= 3) on_grid = on_grid && (base[a] -= rest % 3) >= 0;
+      if (!on_grid) continue;
+      const std::size_t b = geometry.index(base);
+      if (!reaching_base_[b]) reaching_base_[b] = 1, marked.push_back(b);
+    }
+  }
   const double d = hello_.continuum.grain_diameter, rho = hello_.continuum.grain_density;
   for (std::size_t p = 0; p < pts.size(); ++p) {
-    double q = -1;  // computed on the first touched node of the point's stencil
-    coupler::for_each_stencil_node<D>(coupler::QuadraticStencil<D>(grid.to_cell_units(pts.x[p])), geometry,
-                                      [&](std::size_t k, double w, const auto&) {
-                                        const std::int64_t t = touched_slot_[k];
-                                        if (t < 0 || w <= 0) return;
-                                        if (q < 0) q = coupler::field_share(coupler::inertial_number<D>(pts.C[p], pts.stress[p], d, rho));
-                                        share[t] += w * pts.mass[p] * q;
-                                        mass[t] += w * pts.mass[p];
-                                      });
+    const coupler::QuadraticStencil<D> stencil(grid.to_cell_units(pts.x[p]));
+    if (!reaching_base_[geometry.index(stencil.base)]) continue;
+    const double q = coupler::field_share(coupler::inertial_number<D>(pts.C[p], pts.stress[p], d, rho));
+    coupler::for_each_stencil_node<D>(stencil, geometry, [&](std::size_t k, double w, const auto&) {
+      const std::int64_t t = touched_slot_[k];
+      if (t < 0) return;
+      share[t] += w * pts.mass[p] * q;
+      mass[t] += w * pts.mass[p];
+    });
   }
+  for (std::size_t b : marked) reaching_base_[b] = 0;
   for (std::size_t t = 0; t < share.size(); ++t) share[t] = mass[t] > 0 ? share[t] / mass[t] : 0.0;
   return share;
 }

@@ -264,3 +264,44 @@ TEST(CoupledRezone, LightGrainsInADiscreteCellTakeTheirFullMassFromThePointsNear
 }
 
 }  // namespace
+
+// pic regime: each node's share of the field rule (NodeUpdate::field_share) from the flow regime of
+// the points around it. A block of continuum at rest answers 1 at every node its points reach,
+// corner nodes included (the points within a stencil of them); a node beyond their reach answers 0;
+// the same block in simple shear without pressure (free: I infinite) answers 0.
+TEST(CoupledRezone, FieldSharesFollowTheFlowRegimeOfThePoints) {
+  for (const double shear : {0.0, 20.0}) {
+    mpm::CoupledContinuum<2> continuum(square_box());
+    const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+    std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+    Rezone start;
+    for (int i = 3; i <= 8; ++i)
+      for (int j = 3; j <= 8; ++j) {
+        const std::uint64_t c =
+            coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)));
+        zones[c] = coupler::kContinuum;
+        add_grains(start, grid, c, 0.8 * kSolidContent, {1, 1, 1, 1}, Eigen::Vector2d(shear * kCell * (j - 5.5), 0.0));
+      }
+    rezone(continuum, zones, start);
+    auto node_at = [&](double x, double y) {
+      return grid.index(((Eigen::Vector2d(x, y) - grid.origin) / kCell).array().round().cast<int>().matrix());
+    };
+    // the centre, the lower corner, the upper corner (reached only by the corner points' stencils,
+    // at their far end), and a node two cells out of the block
+    const std::vector<std::uint64_t> nodes = {node_at(0.06, 0.06), node_at(0.03, 0.03), node_at(0.10, 0.10),
+                                              node_at(0.01, 0.01)};
+    std::vector<coupler::NodeRecord> records;
+    for (std::uint64_t k : nodes) records.push_back({k, 1e-6, {0, 0, 0}});
+    std::vector<std::vector<coupler::NodeUpdate>> replies;
+    for (int step = 1; step <= 2; ++step) {  // the second step's points carry the shear in their gradient
+      continuum.advance_to(step * 1e-5);
+      replies = continuum.agree({records}, true);
+      continuum.complete_step();
+    }
+    const double inside = shear > 0 ? 0.0 : 1.0;
+    EXPECT_EQ(replies[0][0].field_share, inside) << "shear " << shear;    // the block's centre
+    EXPECT_EQ(replies[0][1].field_share, inside) << "shear " << shear;
+    EXPECT_EQ(replies[0][2].field_share, inside) << "shear " << shear;
+    EXPECT_EQ(replies[0][3].field_share, 0.0) << "shear " << shear;
+  }
+}

@@ -133,7 +133,8 @@ class CoupledContinuum {
   std::vector<Vec<D>> dem_momentum_;
   std::vector<std::size_t> touched_;
   /// The field shares of the touched nodes (touched_ order), from the points' inertial numbers.
-  std::vector<double> touched_field_shares() const;
+  std::vector<double> touched_field_shares();
+  std::vector<std::uint8_t> reaching_base_;  ///< scratch of touched_field_shares, all 0 between calls
   std::vector<std::int64_t> touched_slot_;  ///< node -> index in touched_, -1 if untouched
   double interval_ = 0;               ///< time since the previous exchange, s
   std::vector<coupler::SupportNode<D>> support_;  ///< each node's support force until the next exchange
