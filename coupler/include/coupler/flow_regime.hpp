@@ -24,7 +24,8 @@ inline constexpr double kFlowingInertialNumber = 1e-2;
 
 /// Inertial number of a material point from its velocity gradient L, its Cauchy stress
 /// (tension positive), the grain diameter and the grains' solid density. The shear rate is
-/// sqrt(2) |dev sym L| (the mu(I) convention of mpm_solver's update_mu_i). A point without
+/// sqrt(2) |dev sym L| (the mu(I) convention of mpm_solver's update_mu_i; unlike the oracle's
+/// coupler::shear_rate, which counts a compaction as shear, the deviatoric part only). A point without
 /// pressure is free (infinite I); one without shear under pressure is at rest (I = 0).
 template <int D>
 double inertial_number(const Eigen::Matrix<double, D, D>& L, const Eigen::Matrix<double, D, D>& stress,
