@@ -64,4 +64,11 @@ def test_hybrid_collapse_is_closer_to_dem_than_pure_mpm(tmp_path, hybrid_program
     # both came to rest, and the hybrid's runout is within 15 % of the DEM's (single DEM runs of
     # this size spread over 3.2-3.6, tests/test_dem_collapse.py: the front is a noisy measure)
     assert dem.at_rest and hybrid.at_rest
+    # the hybrid's rest criterion is the DEM's for the same material: the kinetic energy of its
+    # grains (carried masses) and points over the grains the column holds in the DEM (fewer grains
+    # stay in LAMMPS, so their energy over their own number would be a stricter criterion)
+    from hgtools.logs import thermo_rows
+    last = thermo_rows(tmp_path / "hybrid" / "log.lammps", require="f_couple[15]")[-1]
+    assert last["v_ng"] < dem.grains and last["f_couple[15]"] > 0
+    assert last["v_kepg"] == pytest.approx((last["c_kef"] + last["f_couple[15]"]) / dem.grains, rel=1e-5)
     assert abs(hybrid.runout - dem.runout) < 0.15 * dem.runout
