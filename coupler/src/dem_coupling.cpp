@@ -148,6 +148,7 @@ RezoneReport rezone_report(std::int64_t step, const RezoneCounts &counts, const 
                            const RezoneAftermath &after) {
   RezoneReport r;
   r.step = step, r.weight = weight, r.lightest = -after.drift[0], r.heaviest = after.drift[1];
+  r.mean_carried = after.share_sums[1] > 0 ? after.share_sums[0] / after.share_sums[1] : 1.0;
   r.grains_deleted = counts.deleted, r.grains_made = counts.made, r.hybrid_grains = after.hybrid_grains;
   r.points_made = ack.points_made, r.moved_cells = ack.moved_cells;
   r.continuum_cells = ack.zone_cells[kContinuum], r.hybrid_cells = ack.zone_cells[kHybrid];
@@ -161,6 +162,9 @@ RezoneAftermath rezone_aftermath(const DemGrains &g, const GrainRules &rules, st
   double drift[2];
   mass_drift(g, rules, drift);
   MPI_Allreduce(drift, a.drift, 2, MPI_DOUBLE, MPI_MAX, comm);
+  double sums[2];
+  mass_share_sums(g, rules, sums);
+  MPI_Allreduce(sums, a.share_sums, 2, MPI_DOUBLE, MPI_SUM, comm);
   const std::int64_t hybrid = hybrid_grain_count(g);    // all of them, not only the rezoned cells'
   MPI_Allreduce(&hybrid, &a.hybrid_grains, 1, MPI_INT64_T, MPI_SUM, comm);
   MPI_Allreduce(&max_tag, &a.max_tag, 1, MPI_INT64_T, MPI_MAX, comm);

@@ -72,6 +72,15 @@ void mass_drift(const DemGrains &g, const GrainRules &rules, double out[2]) {
   }
 }
 
+void mass_share_sums(const DemGrains &g, const GrainRules &rules, double out[2]) {
+  out[0] = out[1] = 0.0;
+  for (int i = 0; i < g.n; i++) {
+    if (!g.coupled(i)) continue;
+    out[0] += g.rmass[i];
+    out[1] += g.weight[i] * rules.solid_mass(g.radius[i]);
+  }
+}
+
 std::int64_t hybrid_grain_count(const DemGrains &g) {
   std::int64_t n = 0;
   for (int i = 0; i < g.n; i++) n += g.coupled(i) && g.weight[i] < 1.0 ? 1 : 0;

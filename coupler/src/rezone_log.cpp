@@ -33,7 +33,8 @@ std::string rezone_line(const RezoneReport &r) {
          n(r.grains_made) + " grains made from points; " + n(r.moved_cells) + " cells moved; grid cells in the box: " +
          n(r.continuum_cells) + " continuum, " + n(r.hybrid_cells) + " hybrid, " + n(r.discrete_cells) + " discrete; " +
          n(r.rests_moved) + " cells gave their rest of material to nearby points, " + n(r.rests_kept) +
-         " kept it; carried mass / solid mass " + general(r.lightest, 3) + " to " + general(r.heaviest, 3);
+         " kept it; carried mass / solid mass " + general(r.lightest, 3) + " to " + general(r.heaviest, 3) +
+         ", mean " + general(r.mean_carried, 4);
 }
 
 std::string rezone_totals_line(std::int64_t step, const double before[7], const double after[7]) {
@@ -53,6 +54,7 @@ void RezoneTally::add(const RezoneReport &r) {
   sum_.rests_moved += r.rests_moved;
   sum_.rests_kept += r.rests_kept;
   sum_.hybrid_grains = r.hybrid_grains;
+  sum_.mean_carried = r.mean_carried;
   sum_.weight = r.weight;
   sum_.continuum_cells = r.continuum_cells, sum_.hybrid_cells = r.hybrid_cells, sum_.discrete_cells = r.discrete_cells;
   sum_.lightest = std::min(sum_.lightest, r.lightest);
@@ -67,7 +69,8 @@ std::string RezoneTally::summary_line(const char *what, std::int64_t last_step) 
          " cells moved; " + n(s.rests_moved) + " cells gave their rest of material to nearby points, " +
          n(s.rests_kept) + " kept it; now " + n(s.hybrid_grains) + " hybrid grains, zones " + n(s.continuum_cells) +
          " continuum, " + n(s.hybrid_cells) + " hybrid, " + n(s.discrete_cells) +
-         " discrete cells; carried mass / solid mass " + general(s.lightest, 3) + " to " + general(s.heaviest, 3);
+         " discrete cells; carried mass / solid mass " + general(s.lightest, 3) + " to " + general(s.heaviest, 3) +
+         ", mean " + general(s.mean_carried, 4);
 }
 
 }    // namespace coupler

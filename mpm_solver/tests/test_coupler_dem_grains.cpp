@@ -82,6 +82,15 @@ TEST(DemGrains, MassDriftIsCarriedOverWeightTimesSolidMass) {
   EXPECT_DOUBLE_EQ(d[1], 1.0);
 }
 
+TEST(DemGrains, MassShareSumsAreCarriedMassAndWeightTimesSolidMass) {
+  Atoms a;
+  double s[2];
+  coupler::mass_share_sums(a.view(), rules(), s);
+  // grain 0: carried 0.5, share 0.5 * 1; grain 1: carried 0.9, share 1 * 1.44 (mass_drift's grains)
+  EXPECT_DOUBLE_EQ(s[0], 0.5 + 0.9);
+  EXPECT_DOUBLE_EQ(s[1], 0.5 + 1.44);
+}
+
 TEST(DemGrains, HybridGrainsAreTheGroupsGrainsOfWeightBelowOne) {
   Atoms a;
   EXPECT_EQ(coupler::hybrid_grain_count(a.view()), 1);

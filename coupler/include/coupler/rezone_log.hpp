@@ -37,6 +37,9 @@ struct RezoneReport {
   std::int64_t rests_moved = 0;       ///< cells that gave their rest of material to nearby points
   std::int64_t rests_kept = 0;        ///< cells that kept it
   double lightest = 1.0, heaviest = 1.0;    ///< carried mass / (weight * solid mass), extremes after it
+  /// the same summed over all grains (mass_share_sums) after it: above 1 the conversions between
+  /// grains and points have lost grain volume (fewer grains carry the material, each heavier)
+  double mean_carried = 1.0;
 };
 
 /// The full log's first line of a rezone (without a trailing newline):
@@ -47,8 +50,8 @@ std::string rezone_line(const RezoneReport &r);
 /// momentum x y z) just before and just after the rezone, to round-off.
 std::string rezone_totals_line(std::int64_t step, const double before[7], const double after[7]);
 
-/// Rezones since a step: their counts summed, the zones and hybrid grains of the last, the
-/// extremes of the carried mass over all of them.
+/// Rezones since a step: their counts summed, the zones, hybrid grains and mean carried mass of
+/// the last, the extremes of the carried mass over all of them.
 class RezoneTally {
  public:
   explicit RezoneTally(std::int64_t first_step = 0) : first_(first_step) {}
@@ -60,7 +63,8 @@ class RezoneTally {
   const RezoneReport &sum() const { return sum_; }
   /// "fix hybrid/mpm: <what> A-B: N rezone(s): X grains became P material points, G grains made from
   /// points, M cells moved; R cells gave their rest of material to nearby points, K kept it; now H
-  /// hybrid grains, zones C continuum, Y hybrid, Z discrete cells; carried mass / solid mass L to U"
+  /// hybrid grains, zones C continuum, Y hybrid, Z discrete cells; carried mass / solid mass L to U,
+  /// mean M"
   /// with <what> "steps" (a thermo interval) or "run of steps"; A the first step, B = last_step.
   std::string summary_line(const char *what, std::int64_t last_step) const;
 
