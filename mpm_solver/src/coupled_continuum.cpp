@@ -177,7 +177,16 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   // Cells whose material moves: a changed zone, material of the wrong kind for the zone
   // (points that drifted into a discrete cell, grains into a continuum cell), a hybrid cell
   // whose grains drained out (kStarvedGrains), or a discrete cell whose grains came from a
-  // hybrid one lighter than their solid mass (kLightGrains).
+  // hybrid one lighter than their solid mass (kLightGrains) and points near that can give it
+  // (kRestReach: the cells whose points stay in a continuum or hybrid zone).
+  std::vector<std::uint8_t> carriers(n, 0);
+  for (std::size_t c = 0; c < n; ++c) carriers[c] = has_points[c] && next[c] != coupler::kDiscrete;
+  auto carriers_near = [&](std::size_t c) {
+    bool found = false;
+    coupler::for_each_cell_within<D>(geometry, coupler::cell_coords<D>(geometry, c), coupler::kRestReach,
+                                     [&](std::uint64_t cell) { found = found || carriers[cell]; });
+    return found;
+  };
   moving_.clear();
   std::vector<std::int64_t> slot(n, -1);
   for (std::size_t c = 0; c < n; ++c) {
@@ -187,7 +196,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     const bool starved = next[c] == coupler::kHybrid && points &&
                          grain_mass[c] < coupler::kStarvedGrains * grain_share(coupler::kHybrid) * (grain_mass[c] + point_mass[c]);
     const bool light = next[c] == coupler::kDiscrete && grains &&
-                       grain_mass[c] < coupler::kLightGrains * cs.grain_density * volume[c];
+                       grain_mass[c] < coupler::kLightGrains * cs.grain_density * volume[c] && carriers_near(c);
     if (next[c] == zones_[c] && !stray && !starved && !light) continue;
     slot[c] = static_cast<std::int64_t>(moving_.size());
     MovingCell m;
@@ -372,7 +381,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   }
 
   // 3. The rests go to the surviving points of the nearest cells that stay continuum or hybrid
-  // (one rigid correction each: exact): the cells within the smallest reach, up to kRestReach,
+  // (one rigid correction each: exact): the cells within the smallest reach, up to coupler::kRestReach,
   // whose points carry at least kRestCarriers times the rest (their masses change by at most
   // 1/2; the cells around the rest keep the correction's rotation small). A cell whose grains
   // and points already hold its volume of solid grain material takes no surplus: rests given
@@ -381,7 +390,6 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   // points near, the cell keeps its rest: its grains take a deficit, and a surplus up to
   // kHeaviestKept times their solid share (by less than half a grain's where new grains were
   // made to fit), its points the remainder (a discrete cell's then wait there for room for grains).
-  constexpr int kRestReach = 3;
   constexpr double kRestCarriers = 2.0;
   std::map<std::uint64_t, std::vector<std::size_t>> carriers;  // cell -> its points that can take a rest
   const bool rests = std::any_of(split.begin(), split.end(), [](const Split& s) { return s.rest != 0; });
@@ -423,7 +431,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     std::vector<std::size_t> members, candidate;
     double created_least = std::numeric_limits<double>::infinity();
     const double needed = kRestCarriers * std::abs(rest.mass);
-    for (int reach = 1; reach <= kRestReach; ++reach) {
+    for (int reach = 1; reach <= coupler::kRestReach; ++reach) {
       candidate.clear();
       double mass = 0;
       coupler::for_each_cell_within<D>(geometry, c, reach, [&](std::uint64_t cell) {

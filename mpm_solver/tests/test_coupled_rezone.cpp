@@ -263,6 +263,39 @@ TEST(CoupledRezone, LightGrainsInADiscreteCellTakeTheirFullMassFromThePointsNear
   EXPECT_NEAR(after.momentum[0], 0.0, 1e-12 * packed);
 }
 
+// A light discrete cell takes its grains' missing mass from points within kRestReach cells; with
+// none there the rezone could only keep the deficit, so the cell is not planned (a collapse whose
+// continuum was gone replanned such cells at every oracle step to its end). The band's points
+// count while within reach along every axis, not beyond; nor do points of a cell turning discrete.
+TEST(CoupledRezone, LightGrainsWithNoPointsWithinReachAreLeftAlone) {
+  const coupler::Hello hello = square_box();
+  const double packed = 0.8 * kSolidContent, weight = hello.continuum.grain_weight;
+  for (const int gap : {coupler::kRestReach, coupler::kRestReach + 1}) {
+    for (const bool band_stays : {true, false}) {
+      mpm::CoupledContinuum<2> continuum(hello);
+      const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+      auto cell_at = [&](int i, int j) {
+        return coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)));
+      };
+      std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+      const std::uint64_t light = cell_at(2, 2), band = cell_at(2 + gap, 2 + gap);
+      zones[band] = coupler::kHybrid;
+      Rezone start;
+      add_grains(start, grid, band, packed);
+      rezone(continuum, zones, start);
+      if (!band_stays) zones[band] = coupler::kDiscrete;
+      Rezone now;
+      add_grains(now, grid, band, packed, {weight, weight, weight, weight});
+      now.volumes.push_back({light, packed / kGrainDensity, 0.9 * packed});
+      bool found = false;
+      for (const auto& plan : continuum.plan_rezone(0.0, coupler::kZonesGiven, zones, coupler::OracleSettings{}, {},
+                                                    {now.volumes}))
+        found = found || plan.cell == light;
+      EXPECT_EQ(found, band_stays && gap <= coupler::kRestReach) << "gap " << gap << ", band stays " << band_stays;
+    }
+  }
+}
+
 }  // namespace
 
 // pic regime: each node's share of the field rule (NodeUpdate::field_share) from the flow regime of

@@ -187,6 +187,13 @@ inline constexpr double kStarvedGrains = 0.5;
 /// docs/design.md 5.6). One grain of half weight among the 30 or so of a cell is under it.
 inline constexpr double kLightGrains = 0.99;
 
+/// How far (in cells, any axis) a cell's rest of material may go to the points of other cells;
+/// beyond it the cell keeps its rest (docs/design.md 5.6). A discrete cell of light grains
+/// (kLightGrains) with no points that could give their missing mass within it is not rezoned:
+/// the rezone could only keep the deficit, and would again at every oracle step (a collapse
+/// whose continuum was gone replanned about 5 cells at every oracle step to its end).
+inline constexpr int kRestReach = 3;
+
 /// The heaviest a rezone makes grains, as a multiple of their solid share, where a cell's surplus
 /// of material finds no points near to take it (the continuum is nearly gone).
 inline constexpr double kHeaviestKept = 2.0;
