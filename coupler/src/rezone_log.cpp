@@ -34,7 +34,7 @@ std::string rezone_line(const RezoneReport &r) {
          n(r.continuum_cells) + " continuum, " + n(r.hybrid_cells) + " hybrid, " + n(r.discrete_cells) + " discrete; " +
          n(r.rests_moved) + " cells gave their rest of material to nearby points, " + n(r.rests_kept) +
          " kept it; carried mass / solid mass " + general(r.lightest, 3) + " to " + general(r.heaviest, 3) +
-         ", mean " + general(r.mean_carried, 4);
+         " (mean " + general(r.mean_carried, 4) + ")";
 }
 
 std::string rezone_totals_line(std::int64_t step, const double before[7], const double after[7]) {
@@ -70,7 +70,7 @@ std::string RezoneTally::summary_line(const char *what, std::int64_t last_step) 
          n(s.rests_kept) + " kept it; now " + n(s.hybrid_grains) + " hybrid grains, zones " + n(s.continuum_cells) +
          " continuum, " + n(s.hybrid_cells) + " hybrid, " + n(s.discrete_cells) +
          " discrete cells; carried mass / solid mass " + general(s.lightest, 3) + " to " + general(s.heaviest, 3) +
-         ", mean " + general(s.mean_carried, 4);
+         " (mean " + general(s.mean_carried, 4) + ")";
 }
 
 }    // namespace coupler

@@ -43,7 +43,7 @@ TEST(RezoneLog, FullLineIsTheDocumentedOne) {
             "fix hybrid/mpm: step 41: 61 grains became 244 material points, 89 grains are hybrid (weight 0.5), 0 "
             "grains made from points; 20 cells moved; grid cells in the box: 196 continuum, 169 hybrid, 1276 "
             "discrete; 1 cells gave their rest of material to nearby points, 2 kept it; carried mass / solid mass 1 "
-            "to 1, mean 1.041");
+            "to 1 (mean 1.041)");
   auto r = report(1, 0, 0, 0.8412345, 2.0);
   r.weight = 0.3;
   const std::string line = coupler::rezone_line(r);
@@ -83,8 +83,8 @@ TEST(RezoneLog, SummaryAddsTheCountsAndKeepsTheLastZonesAndTheExtremes) {
   EXPECT_EQ(tally.summary_line(coupler::kSummaryInterval, 100),
             "fix hybrid/mpm: steps 2-100: 3 rezones: 15 grains became 60 material points, 10 grains made from "
             "points, 60 cells moved; 3 cells gave their rest of material to nearby points, 6 kept it; now 109 hybrid "
-            "grains, zones 196 continuum, 189 hybrid, 1276 discrete cells; carried mass / solid mass 0.9 to 1.7, mean "
-            "1.061");    // the mean of the last rezone, as its zones
+            "grains, zones 196 continuum, 189 hybrid, 1276 discrete cells; carried mass / solid mass 0.9 to 1.7 (mean "
+            "1.061)");    // the mean of the last rezone, as its zones
   // the summary does not read as a rezone line to the full log's parsers
   EXPECT_EQ(tally.summary_line(coupler::kSummaryInterval, 100).find("grains are hybrid"), std::string::npos);
   EXPECT_EQ(tally.summary_line(coupler::kSummaryInterval, 100).find("grid cells in the box"), std::string::npos);

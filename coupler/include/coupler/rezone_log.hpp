@@ -63,8 +63,8 @@ class RezoneTally {
   const RezoneReport &sum() const { return sum_; }
   /// "fix hybrid/mpm: <what> A-B: N rezone(s): X grains became P material points, G grains made from
   /// points, M cells moved; R cells gave their rest of material to nearby points, K kept it; now H
-  /// hybrid grains, zones C continuum, Y hybrid, Z discrete cells; carried mass / solid mass L to U,
-  /// mean M"
+  /// hybrid grains, zones C continuum, Y hybrid, Z discrete cells; carried mass / solid mass L to U
+  /// (mean M)"
   /// with <what> "steps" (a thermo interval) or "run of steps"; A the first step, B = last_step.
   std::string summary_line(const char *what, std::int64_t last_step) const;
 
