@@ -21,6 +21,7 @@ from column_collapse import ColumnCollapse, combine_surfaces, points_surface, su
 from conftest import BUILD
 import mpm_results
 from dem_collapse import run
+from hgtools.logs import thermo_rows
 
 ASPECT, WIDTH, D = 2.0, 0.05, 0.002
 DECK_VARS = {"mu": 0.5, "e": 0.5}
@@ -67,7 +68,6 @@ def test_hybrid_collapse_is_closer_to_dem_than_pure_mpm(tmp_path, hybrid_program
     # the hybrid's rest criterion is the DEM's for the same material: the kinetic energy of its
     # grains (carried masses) and points over the grains the column holds in the DEM (fewer grains
     # stay in LAMMPS, so their energy over their own number would be a stricter criterion)
-    from hgtools.logs import thermo_rows
     last = thermo_rows(tmp_path / "hybrid" / "log.lammps", require="f_couple[15]")[-1]
     assert last["v_ng"] < dem.grains and last["f_couple[15]"] > 0
     assert last["v_kepg"] == pytest.approx((last["c_kef"] + last["f_couple[15]"]) / dem.grains, rel=1e-5)

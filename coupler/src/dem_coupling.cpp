@@ -159,11 +159,9 @@ RezoneReport rezone_report(std::int64_t step, const RezoneCounts &counts, const 
 
 RezoneAftermath rezone_aftermath(const DemGrains &g, const GrainRules &rules, std::int64_t max_tag, MPI_Comm comm) {
   RezoneAftermath a;
-  double drift[2];
-  mass_drift(g, rules, drift);
+  double drift[2], sums[2];
+  mass_drift(g, rules, drift, sums);
   MPI_Allreduce(drift, a.drift, 2, MPI_DOUBLE, MPI_MAX, comm);
-  double sums[2];
-  mass_share_sums(g, rules, sums);
   MPI_Allreduce(sums, a.share_sums, 2, MPI_DOUBLE, MPI_SUM, comm);
   const std::int64_t hybrid = hybrid_grain_count(g);    // all of them, not only the rezoned cells'
   MPI_Allreduce(&hybrid, &a.hybrid_grains, 1, MPI_INT64_T, MPI_SUM, comm);

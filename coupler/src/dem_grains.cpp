@@ -63,21 +63,14 @@ std::vector<CellGrains> cell_grains(const GridGeometry<D> &grid, const DemGrains
   return out;
 }
 
-void mass_drift(const DemGrains &g, const GrainRules &rules, double out[2]) {
-  out[0] = -1.0e20, out[1] = 0.0;    // -lightest, heaviest
+void mass_drift(const DemGrains &g, const GrainRules &rules, double extremes[2], double sums[2]) {
+  extremes[0] = -1.0e20, extremes[1] = 0.0;    // -lightest, heaviest
+  sums[0] = sums[1] = 0.0;
   for (int i = 0; i < g.n; i++) {
     if (!g.coupled(i)) continue;
-    const double f = g.rmass[i] / (g.weight[i] * rules.solid_mass(g.radius[i]));
-    out[0] = std::max(out[0], -f), out[1] = std::max(out[1], f);
-  }
-}
-
-void mass_share_sums(const DemGrains &g, const GrainRules &rules, double out[2]) {
-  out[0] = out[1] = 0.0;
-  for (int i = 0; i < g.n; i++) {
-    if (!g.coupled(i)) continue;
-    out[0] += g.rmass[i];
-    out[1] += g.weight[i] * rules.solid_mass(g.radius[i]);
+    const double share = g.weight[i] * rules.solid_mass(g.radius[i]), f = g.rmass[i] / share;
+    extremes[0] = std::max(extremes[0], -f), extremes[1] = std::max(extremes[1], f);
+    sums[0] += g.rmass[i], sums[1] += share;
   }
 }
 

@@ -89,7 +89,7 @@ StepOutcome rezone_grains(DemSession &session, MPI_Comm comm, const RezonePlan<D
 /// this rank's `max_tag`; new atoms have ID 0 until the host numbers them) and the hybrid grains.
 struct RezoneAftermath {
   double drift[2] = {0, 0};
-  double share_sums[2] = {0, 0};    ///< mass_share_sums over the ranks: carried, weight times solid
+  double share_sums[2] = {0, 0};    ///< mass_drift's sums over the ranks: carried, weight times solid
   std::int64_t max_tag = 0;
   std::int64_t hybrid_grains = 0;    ///< grains of the group with a weight below 1, all ranks
 };

@@ -56,15 +56,13 @@ std::vector<int> coupled_grains(const DemGrains &g, ZoneOf &&zone_of) {
   return index;
 }
 
-/// Carried mass over weight times solid mass of this rank's grains of the group: out[0] the
-/// lightest's, negated, out[1] the heaviest's (for a max-reduction over the ranks).
-void mass_drift(const DemGrains &g, const GrainRules &rules, double out[2]);
-
-/// This rank's grains of the group summed: out[0] their carried mass, out[1] their weights times
-/// their solid masses (for a sum-reduction). The ratio is the carried mass over the solid share on
-/// the mean: above 1 the grains are fewer than their material fills (the conversions lost grain
-/// volume, and the grains are heavier than their size); 1 for grains that never met a continuum.
-void mass_share_sums(const DemGrains &g, const GrainRules &rules, double out[2]);
+/// Carried mass over weight times solid mass of this rank's grains of the group, in one pass:
+/// extremes[0] the lightest's, negated, extremes[1] the heaviest's (for a max-reduction over the
+/// ranks); sums[0] their carried mass, sums[1] their weights times their solid masses (for a
+/// sum-reduction). The sums' ratio is the carried mass over the solid share on the mean: above 1
+/// the grains are fewer than their material fills (the conversions lost grain volume, and the
+/// grains are heavier than their size); 1 for grains that never met a continuum.
+void mass_drift(const DemGrains &g, const GrainRules &rules, double extremes[2], double sums[2]);
 
 /// How many of this rank's grains of the group carry a weight below 1 (the hybrid grains).
 std::int64_t hybrid_grain_count(const DemGrains &g);

@@ -37,7 +37,7 @@ struct RezoneReport {
   std::int64_t rests_moved = 0;       ///< cells that gave their rest of material to nearby points
   std::int64_t rests_kept = 0;        ///< cells that kept it
   double lightest = 1.0, heaviest = 1.0;    ///< carried mass / (weight * solid mass), extremes after it
-  /// the same summed over all grains (mass_share_sums) after it: above 1 the conversions between
+  /// the same summed over all grains (mass_drift's sums) after it: above 1 the conversions between
   /// grains and points have lost grain volume (fewer grains carry the material, each heavier)
   double mean_carried = 1.0;
 };
