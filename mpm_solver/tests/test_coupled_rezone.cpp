@@ -299,12 +299,18 @@ TEST(CoupledRezone, LightGrainsWithNoPointsWithinReachAreLeftAlone) {
 }  // namespace
 
 // pic regime: each node's share of the field rule (NodeUpdate::field_share) from the flow regime of
-// the points around it. A block of continuum at rest answers 1 at every node its points reach,
-// corner nodes included (the points within a stencil of them); a node beyond their reach answers 0;
-// the same block in simple shear without pressure (free: I infinite) answers 0.
+// the points around it, at the agreement's rate. A block of continuum at rest answers the share the
+// agreement closes over the interval T, 1 - exp(-T / agreement_time) (1 with agreement_time 0), at
+// every node its points reach, corner nodes included (the points within a stencil of them); a node
+// beyond their reach answers 0; the same block in simple shear without pressure (free: I infinite)
+// answers 0.
 TEST(CoupledRezone, FieldSharesFollowTheFlowRegimeOfThePoints) {
+  constexpr double kInterval = 1e-5;  // s, between the exchanges below
+  for (const double agreement_time : {0.0, 4 * kInterval})
   for (const double shear : {0.0, 20.0}) {
-    mpm::CoupledContinuum<2> continuum(square_box());
+    coupler::Hello hello = square_box();
+    hello.continuum.agreement_time = agreement_time;
+    mpm::CoupledContinuum<2> continuum(hello);
     const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
     std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
     Rezone start;
@@ -327,14 +333,15 @@ TEST(CoupledRezone, FieldSharesFollowTheFlowRegimeOfThePoints) {
     for (std::uint64_t k : nodes) records.push_back({k, 1e-6, {0, 0, 0}});
     std::vector<std::vector<coupler::NodeUpdate>> replies;
     for (int step = 1; step <= 2; ++step) {  // the second step's points carry the shear in their gradient
-      continuum.advance_to(step * 1e-5);
+      continuum.advance_to(step * kInterval);
       replies = continuum.agree({records}, true);
       continuum.complete_step();
     }
-    const double inside = shear > 0 ? 0.0 : 1.0;
-    EXPECT_EQ(replies[0][0].field_share, inside) << "shear " << shear;    // the block's centre
-    EXPECT_EQ(replies[0][1].field_share, inside) << "shear " << shear;
-    EXPECT_EQ(replies[0][2].field_share, inside) << "shear " << shear;
-    EXPECT_EQ(replies[0][3].field_share, 0.0) << "shear " << shear;
+    const double closing = agreement_time > 0 ? 1.0 - std::exp(-kInterval / agreement_time) : 1.0;
+    const double inside = shear > 0 ? 0.0 : closing;
+    for (int n = 0; n < 3; ++n)  // the block's centre, its corners
+      EXPECT_NEAR(replies[0][n].field_share, inside, 1e-15) << "node " << n << ", shear " << shear
+                                                           << ", agreement time " << agreement_time;
+    EXPECT_EQ(replies[0][3].field_share, 0.0) << "shear " << shear << ", agreement time " << agreement_time;
   }
 }

@@ -299,8 +299,9 @@ struct NodeUpdate {
   double velocity[3] = {0, 0, 0};
   double impulse_per_mass[3] = {0, 0, 0};
   double support[3] = {0, 0, 0};     ///< support force F_i / m_dem_i until the next exchange, m/s^2
-  /// Share of the field rule in the node's grain update from the continuum's flow regime
-  /// there (coupler/flow_regime.hpp), when StepHeader::field_shares asked for it; else 0
+  /// Share of the field rule in the node's grain update, when StepHeader::field_shares asked
+  /// for it (else 0): the continuum's flow regime there (coupler/flow_regime.hpp) times the
+  /// share of the gap the agreement closes over the interval, 1 - exp(-T / agreement_time)
   double field_share = 0;
 };
 

@@ -51,8 +51,8 @@ class CoupledContinuum {
   void advance_to(double time);
   /// The velocity agreement on the nodes the DEM ranks sent (NodeRecord lists, one per
   /// rank); returns the answers in the same order. Call between advance_to and complete_step.
-  /// With field_shares, each answer also carries the node's share of the field rule from the
-  /// continuum's flow regime there (coupler/flow_regime.hpp).
+  /// With field_shares, each answer also carries the node's share of the field rule: the
+  /// continuum's flow regime there (coupler/flow_regime.hpp) times the agreement's closing.
   std::vector<std::vector<coupler::NodeUpdate>> agree(const std::vector<std::vector<coupler::NodeRecord>>& per_rank,
                                                       bool field_shares = false);
   /// The continuum's totals from the agreed grid: what the points hold after complete_step
