@@ -15,8 +15,14 @@ Scenes and measures:
 Every hybrid row also gives the energy ledger's closure (largest residual over the largest
 energy figure, tools/hgtools/logs.py).
 
+The 2D scenes run from one or more packings (--seeds): each packing's hybrids against the DEM
+from the same packing, its noise floor the DEM from another packing against that DEM (the
+reference packing's is OTHER_SEED's; every other packing's is the reference's), and the report
+gives the mean over the packings of each numerics pair.
+
 Usage: bench/adaptive_accuracy.py [--np 2] [--quick] [--scenes collapse_2d,silo_2d,...]
                                   [--exchanges 1,5,10,20] [--oracles 100,300,1000]
+                                  [--seeds 12345,2] [--aspects 2,0.5]
 Writes bench/results/adaptive_accuracy.json (a list `rows`) and .md.
 """
 from __future__ import annotations
@@ -43,7 +49,8 @@ from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
 
 D = 0.002
-OTHER_SEED = 2                                  # the noise floor's packing
+REFERENCE_SEED = 12345                          # the packing of the decks and the tests
+OTHER_SEED = 2                                  # the reference packing's noise floor
 EXCHANGES = (1, 5, 10, 20)                      # at the oracle interval ORACLE_DEFAULT
 ORACLES = (100, 300, 1000)                      # at the exchange interval EXCHANGE_DEFAULT
 EXCHANGE_DEFAULT, ORACLE_DEFAULT = 10, 100      # the decks' defaults
@@ -60,56 +67,72 @@ def closure(log: Path) -> float:
     return ledger_closure(thermo_rows(log, require="f_couple[29]"))
 
 
-def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs) -> list[dict]:
+def floor_seed(seed: int) -> int:
+    """The packing whose DEM is `seed`'s noise floor."""
+    return OTHER_SEED if seed == REFERENCE_SEED else REFERENCE_SEED
+
+
+def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds) -> list[dict]:
     common = dict(aspect=aspect, width=width, d=D, np_=np_)
-
-    def dem(name, seed):    # the collapse alone, from the cached column, as the hybrid's
-        return run_from_settled(**common, out=work / name, seed=seed)
-
-    ref, other = dem(f"dem_a{aspect:g}", 12345), dem(f"dem_a{aspect:g}_seed", OTHER_SEED)
     h0 = aspect * width
-    ref_surface = np.array(ref.profile).T
-    ref_ke = thermo_kinetic_energy(work / f"dem_a{aspect:g}" / "log.lammps")
-    floor = dict(surface=surface_error(np.array(other.profile).T, ref_surface, h0),
-                 runout=other.runout / ref.runout - 1,
-                 ke=kinetic_energy_error(thermo_kinetic_energy(work / f"dem_a{aspect:g}_seed" / "log.lammps"), ref_ke),
-                 steps=other.steps / ref.steps)
+    dems = {}
+
+    def dem(s):    # the collapse alone, from the cached column, as the hybrid's; once per packing
+        if s not in dems:
+            out = work / f"dem_a{aspect:g}_s{s}"
+            dems[s] = run_from_settled(**common, out=out, seed=s), thermo_kinetic_energy(out / "log.lammps")
+        return dems[s]
+
     rows = []
-    for every, oracle in pairs:
-        name = f"hybrid_a{aspect:g}_e{every}_o{oracle}"
-        hyb = run_collapse(**common, out=work / name, hybrid_vars={"hybrid": 2, "hevery": every, "hadapt": oracle})
+    for seed, every, oracle in ((s, e, o) for s in seeds for e, o in pairs):
+        (ref, ref_ke), (other, other_ke) = dem(seed), dem(floor_seed(seed))
+        ref_surface = np.array(ref.profile).T
+        floor = dict(surface=surface_error(np.array(other.profile).T, ref_surface, h0),
+                     runout=other.runout / ref.runout - 1, ke=kinetic_energy_error(other_ke, ref_ke),
+                     steps=other.steps / ref.steps)
+        name = f"hybrid_a{aspect:g}_s{seed}_e{every}_o{oracle}"
+        hyb = run_collapse(**common, out=work / name, seed=seed,
+                           hybrid_vars={"hybrid": 2, "hevery": every, "hadapt": oracle})
         points = load_run(work / name / "frames").frame(-1)["position"]
         surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, width / 20, 2 * D))
         rows.append(dict(
-            scene="collapse_2d", grains=ref.grains, aspect=aspect, exchange_every=every, oracle_every=oracle,
+            scene="collapse_2d", grains=ref.grains, aspect=aspect, seed=seed, exchange_every=every,
+            oracle_every=oracle,
             runout_error=hyb.runout / ref.runout - 1, surface_error=surface_error(surface, ref_surface, h0),
             ke_error=kinetic_energy_error(thermo_kinetic_energy(work / name / "log.lammps"), ref_ke),
             rate_error=None, steps_ratio=hyb.steps / ref.steps, hybrid_at_rest=hyb.at_rest,
             noise_floor=floor["surface"], noise_floor_runout=floor["runout"], noise_floor_ke=floor["ke"],
             noise_floor_steps_ratio=floor["steps"], ledger_closure=closure(work / name / "log.lammps"),
             dem_value=ref.runout, hybrid_value=hyb.runout, speedup=ref.wall_time / hyb.wall_time))
-        print(f"collapse a = {aspect:g}, every {every}, oracle {oracle}: runout {rows[-1]['runout_error']:+.1%}, "
+        print(f"collapse a = {aspect:g}, seed {seed}, every {every}, oracle {oracle}: "
+              f"runout {rows[-1]['runout_error']:+.1%}, "
               f"surface {rows[-1]['surface_error']:.1%}, steps x{rows[-1]['steps_ratio']:.2f}", flush=True)
     return rows
 
 
-def silo_2d(work: Path, np_: int, quick: bool, pairs) -> list[dict]:
+def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds) -> list[dict]:
     size = dict(width=0.06, height=0.08, orifice=0.016, tdis=0.8, fstop=0.6) if quick else \
         dict(width=0.1, height=0.15, orifice=0.02, tdis=1.0, fstop=0.9)
     common = dict(d=D, np_=np_, extra_vars={"mu": 0.5, "e": 0.5}, **size)
-    ref = run_dem_silo(out=work / "silo_dem", **common)
-    other = run_dem_silo(out=work / "silo_dem_seed", seed=OTHER_SEED, **common)
+    dems = {}
+
+    def dem(s):    # once per packing
+        if s not in dems:
+            dems[s] = run_dem_silo(out=work / f"silo_dem_s{s}", seed=s, **common)
+        return dems[s]
+
     rows = []
-    for every, oracle in pairs:
-        name = f"silo_e{every}_o{oracle}"
-        hyb = run_dem_silo(out=work / name, hybrid_vars={"hevery": every, "hadapt": oracle}, **common)
+    for seed, every, oracle in ((s, e, o) for s in seeds for e, o in pairs):
+        ref, other = dem(seed), dem(floor_seed(seed))
+        name = f"silo_s{seed}_e{every}_o{oracle}"
+        hyb = run_dem_silo(out=work / name, seed=seed, hybrid_vars={"hevery": every, "hadapt": oracle}, **common)
         rows.append(dict(
-            scene="silo_2d", grains=ref.grains, aspect=None, exchange_every=every, oracle_every=oracle,
+            scene="silo_2d", grains=ref.grains, aspect=None, seed=seed, exchange_every=every, oracle_every=oracle,
             runout_error=None, surface_error=None, ke_error=None, rate_error=hyb.rate / ref.rate - 1,
             steps_ratio=None, noise_floor=other.rate / ref.rate - 1, rate_error_se=rate_ratio_se(hyb, ref),
             noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
             dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time))
-        print(f"silo, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
+        print(f"silo, seed {seed}, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
     return rows
 
 
@@ -152,9 +175,9 @@ def pct(v, se=None) -> str:
 
 
 def table(rows: list[dict]) -> list[str]:
-    lines = ["| scene | grains | a | exchange every | oracle every | runout | surface / H0 | KE history | rate | "
-             "steps to rest / DEM's | noise floor (another packing) | ledger closure | speed vs DEM |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    lines = ["| scene | grains | a | packing | exchange every | oracle every | runout | surface / H0 | KE history | "
+             "rate | steps to rest / DEM's | noise floor (another packing) | ledger closure | speed vs DEM |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         floor = pct(r["noise_floor"], r.get("noise_floor_se")) + (f" ({r['noise_floor_is']})" if "noise_floor_is" in r else "") \
             if r["scene"] != "collapse_2d" else (
@@ -162,11 +185,38 @@ def table(rows: list[dict]) -> list[str]:
             f"KE {100 * r['noise_floor_ke']:.1f} %, steps x{r['noise_floor_steps_ratio']:.2f}")
         lines.append(" | ".join([
             f"| {r['scene']}", str(r["grains"]), "" if r["aspect"] is None else f"{r['aspect']:g}",
-            str(r["exchange_every"]), str(r["oracle_every"]), pct(r["runout_error"]),
+            str(r.get("seed", "")), str(r["exchange_every"]), str(r["oracle_every"]), pct(r["runout_error"]),
             "" if r["surface_error"] is None else f"{100 * r['surface_error']:.1f} %",
             "" if r["ke_error"] is None else f"{100 * r['ke_error']:.1f} %", pct(r["rate_error"], r.get("rate_error_se")),
             "" if r["steps_ratio"] is None else f"{r['steps_ratio']:.2f}", floor,
             f"{r['ledger_closure']:.1e}", f"{r['speedup']:.2f}x |"]))
+    return lines
+
+
+def mean_table(rows: list[dict]) -> list[str]:
+    """Each 2D numerics pair's errors on the mean over the packings measured, where there are several."""
+    groups = {}
+    for r in rows:
+        if r["scene"] in ("collapse_2d", "silo_2d") and "seed" in r:
+            groups.setdefault((r["scene"], r["aspect"], r["exchange_every"], r["oracle_every"]), []).append(r)
+    groups = {k: g for k, g in groups.items() if len({r["seed"] for r in g}) > 1}
+    if not groups:
+        return []
+    lines = ["", "Means over the packings (each packing's hybrid against its own DEM):", "",
+             "| scene | a | packings | exchange every | oracle every | runout | surface / H0 | rate | "
+             "steps to rest / DEM's | noise floors |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+
+    def mean(g, key, scale=100.0, fmt="{:+.1f} %"):
+        v = [r[key] for r in g if r.get(key) is not None]
+        return fmt.format(scale * float(np.mean(v))) if v else ""
+
+    for (scene, aspect, every, oracle), g in groups.items():
+        floors = ", ".join(pct(r["noise_floor_runout"] if scene == "collapse_2d" else r["noise_floor"]) for r in g)
+        lines.append(" | ".join([
+            f"| {scene}", "" if aspect is None else f"{aspect:g}", ", ".join(str(r["seed"]) for r in g), str(every),
+            str(oracle), mean(g, "runout_error"), mean(g, "surface_error", fmt="{:.1f} %"), mean(g, "rate_error"),
+            mean(g, "steps_ratio", scale=1.0, fmt="{:.2f}"), floors + " |"]))
     return lines
 
 
@@ -180,9 +230,13 @@ def main() -> int:
                     help="exchange intervals to run (at the default oracle interval)")
     ap.add_argument("--oracles", default=",".join(map(str, ORACLES)),
                     help="oracle intervals to run (at the default exchange interval)")
+    ap.add_argument("--seeds", default=str(REFERENCE_SEED),
+                    help=f"packings of the 2D scenes, comma-separated (the reference {REFERENCE_SEED} first)")
+    ap.add_argument("--aspects", default="2,0.5", help="aspect ratios of collapse_2d (2 and/or 0.5)")
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "adaptive_accuracy.md")
     ap.add_argument("--keep", action="store_true",
-                    help="keep the rows of the scenes not run from the JSON (each row has its date and command)")
+                    help="keep the rows of the JSON that this run does not measure again (each row has its "
+                         "date and command)")
     args = ap.parse_args()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     scenes = args.scenes.split(",")
@@ -192,22 +246,25 @@ def main() -> int:
     pairs = [(EXCHANGE_DEFAULT, ORACLE_DEFAULT)] if args.quick else \
         numerics([int(v) for v in args.exchanges.split(",")], [int(v) for v in args.oracles.split(",")])
     width = {2.0: 0.05 if args.quick else 0.1, 0.5: 0.1 if args.quick else 0.2}
+    seeds = [int(v) for v in args.seeds.split(",")]
+    aspects = [float(v) for v in args.aspects.split(",")]
+    if set(aspects) - set(width):
+        ap.error(f"--aspects takes 2 and/or 0.5 (got {args.aspects})")
     path = args.out.with_suffix(".json")
     kept = []
-    if args.keep and path.exists():    # rows of other scenes, dated as they were measured
+    if args.keep and path.exists():    # earlier rows, dated as they were measured
         saved = json.loads(path.read_text())
         # files written before rows carried their command name it only in the report's first line
         old_report = args.out.read_text().split("`") if args.out.exists() else []
         before = old_report[1] if len(old_report) > 2 else ""
-        kept = [dict(r, date=r.get("date", saved["date"]), command=r.get("command", before))
-                for r in saved["rows"] if r["scene"].split(" ")[0] not in scenes]
+        kept = [dict(r, date=r.get("date", saved["date"]), command=r.get("command", before)) for r in saved["rows"]]
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     rows = []
     with tempfile.TemporaryDirectory(prefix="adaptive_accuracy_") as tmp:
         work = Path(tmp)
-        jobs = [(f"collapse_2d a = {a:g}", lambda a=a: collapse_2d(work, args.np_, a, width[a], pairs))
-                for a in (2.0, 0.5) if "collapse_2d" in scenes]
-        jobs += [(name, job) for name, job in (("silo_2d", lambda: silo_2d(work, args.np_, args.quick, pairs)),
+        jobs = [(f"collapse_2d a = {a:g}", lambda a=a: collapse_2d(work, args.np_, a, width[a], pairs, seeds))
+                for a in aspects if "collapse_2d" in scenes]
+        jobs += [(name, job) for name, job in (("silo_2d", lambda: silo_2d(work, args.np_, args.quick, pairs, seeds)),
                                                ("collapse_3d", lambda: collapse_3d(work, args.np_)),
                                                ("silo_3d", lambda: silo_3d(work, args.np_))) if name in scenes]
         for name, job in jobs:    # a scene that fails is reported; the others' figures are kept
@@ -216,15 +273,27 @@ def main() -> int:
             except Exception as e:    # noqa: BLE001 - the bench goes on, the file says what failed
                 print(f"{name} failed: {e}", flush=True)
                 rows.append(dict(scene=name, failed=str(e)[:2000], date=stamp, command=command(args)))
-            write(args, kept + rows)
-    write(args, kept + rows)
+            write(args, merge(kept, rows))
+    write(args, merge(kept, rows))
     print(f"wrote {args.out}")
     return 0
 
 
+def row_key(r: dict) -> tuple:
+    """What a row measures: its scene (a failed one: the whole scene), aspect, packing and numerics."""
+    return (r["scene"], r.get("aspect"), r.get("seed", REFERENCE_SEED), r.get("exchange_every"), r.get("oracle_every"))
+
+
+def merge(kept: list[dict], rows: list[dict]) -> list[dict]:
+    """The new rows, and the kept ones that none of them measures again (a kept failure: none of its scene)."""
+    new, scenes = {row_key(r) for r in rows}, {r["scene"].split(" ")[0] for r in rows}
+    return [r for r in kept if row_key(r) not in new and not ("failed" in r and r["scene"].split(" ")[0] in scenes)] + rows
+
+
 def command(args) -> str:
     return (f"bench/adaptive_accuracy.py{' --quick' if args.quick else ''} --np {args.np_} --scenes {args.scenes}"
-            f"{'' if args.quick else f' --exchanges {args.exchanges} --oracles {args.oracles}'}")
+            f"{'' if args.quick else f' --exchanges {args.exchanges} --oracles {args.oracles}'}"
+            f" --seeds {args.seeds}{f' --aspects {args.aspects}' if 'collapse_2d' in args.scenes else ''}")
 
 
 SCENE_ORDER = ("collapse_2d", "silo_2d", "collapse_3d", "silo_3d")
@@ -234,16 +303,19 @@ def write(args, rows: list[dict]) -> None:
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     order = {name: k for k, name in enumerate(SCENE_ORDER)}
     rows = sorted(rows, key=lambda r: (order.get(r["scene"].split(" ")[0], len(order)), -(r.get("aspect") or 0),
-                                       r.get("exchange_every") or 0, r.get("oracle_every") or 0))
+                                       r.get("exchange_every") or 0, r.get("oracle_every") or 0,
+                                       r.get("seed") != REFERENCE_SEED, r.get("seed") or 0))
     runs = sorted({(r.get("date", stamp), r.get("command", command(args))) for r in rows})
     lines = ["# Adaptive hybrid against pure LAMMPS DEM: accuracy and independence of the numerics", "",
              "; ".join(f"`{c}`, {d}" for d, c in runs) + f" (each row's date in the JSON); "
              f"{args.np_} LAMMPS rank(s) for DEM and hybrid alike, plus one MPM process for the hybrid, "
              "on a 2-core machine, side by side in one run. Errors are the hybrid's against the DEM from the same "
              "packing; the noise floor is the DEM from another packing against it (same measure). The hybrid "
-             "runs with the fix's defaults of its row's date (adaptive zones; the grain update pic 0 until "
-             "2026-11-29, pic regime since) and the decks' material.", ""]
+             "runs with the fix's defaults of its row's date (adaptive zones; the grain update pic 0 before "
+             "2026-11-29, pic regime with its share per exchange on 2026-11-29, at the agreement's rate since "
+             "2026-12-01) and the decks' material; rows with a packing come from each packing's own DEM.", ""]
     lines += table([r for r in rows if "failed" not in r])
+    lines += mean_table([r for r in rows if "failed" not in r])
     lines += [f"\n{r['scene']} failed: {r['failed'][:300]}" for r in rows if "failed" in r]
     lines += ["", "Targets (issue 14): runout within 5 %, final surface <= 3 % of H0, KE history <= 5 %, steps to "
               "rest <= 1.2x the DEM's; silo rate within 2 %; 3D within the LAMMPS-LIGGGHTS spread; the same for "

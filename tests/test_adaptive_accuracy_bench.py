@@ -1,0 +1,60 @@
+"""bench/adaptive_accuracy.py: how its runs from several packings and several invocations add up.
+
+The bench itself is not a test (its runs take an hour); its results file is read as the hybrid's
+accuracy, so a rerun must replace exactly what it measures again and the means must be the rows'.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+import adaptive_accuracy as bench  # noqa: E402
+
+
+def collapse(seed=None, every=10, oracle=100, runout=0.0, floor=0.005, aspect=2.0, date="old") -> dict:
+    r = dict(scene="collapse_2d", aspect=aspect, exchange_every=every, oracle_every=oracle, runout_error=runout,
+             surface_error=0.013, rate_error=None, steps_ratio=1.0, noise_floor_runout=floor, date=date)
+    if seed is not None:
+        r["seed"] = seed
+    return r
+
+
+def test_a_rerun_replaces_only_the_rows_it_measures_again():
+    kept = [collapse(every=1), collapse(every=10), collapse(seed=2, every=10), collapse(every=10, aspect=0.5),
+            dict(scene="silo_3d", exchange_every=10, oracle_every=100, rate_error=0.01, date="old"),
+            dict(scene="silo_2d", failed="timed out", date="old"),
+            dict(scene="collapse_3d", failed="timed out", date="old")]
+    new = [collapse(seed=bench.REFERENCE_SEED, every=10, date="new"), collapse(seed=3, every=10, date="new"),
+           dict(scene="silo_2d", aspect=None, seed=bench.REFERENCE_SEED, exchange_every=10, oracle_every=100,
+                rate_error=0.0, date="new")]
+    merged = bench.merge(kept, new)
+    # a row written before rows had a packing is the reference packing's: the new one replaces it
+    assert [r for r in merged if r["scene"] == "collapse_2d" and r["aspect"] == 2.0 and r["exchange_every"] == 10
+            and r.get("seed", bench.REFERENCE_SEED) == bench.REFERENCE_SEED] == [new[0]]
+    # other intervals, packings, aspects and scenes stay as they were measured
+    for r in kept[0], kept[2], kept[3], kept[4], kept[6]:
+        assert r in merged
+    # the silo's old failure went with its new row; the 3D collapse's, not rerun, stays
+    assert kept[5] not in merged
+    assert len(merged) == len(kept) - 2 + len(new)
+
+
+def test_means_over_packings_are_the_rows_means_and_need_two_packings():
+    rows = [collapse(seed=bench.REFERENCE_SEED, every=1, runout=-0.06), collapse(seed=2, every=1, runout=-0.02),
+            collapse(seed=3, every=1, runout=+0.02), collapse(seed=bench.REFERENCE_SEED, every=10, runout=0.04)]
+    lines = bench.mean_table(rows)
+    body = [line for line in lines if line.startswith("| collapse_2d")]
+    assert len(body) == 1, "every 10 has one packing: no mean"
+    cells = [c.strip() for c in body[0].strip("|").split("|")]
+    assert cells[2] == f"{bench.REFERENCE_SEED}, 2, 3"
+    assert cells[5] == "-2.0 %"
+    assert bench.mean_table(rows[3:]) == []
+
+
+@pytest.mark.parametrize("seed, floor", [(bench.REFERENCE_SEED, bench.OTHER_SEED), (2, bench.REFERENCE_SEED),
+                                         (3, bench.REFERENCE_SEED)])
+def test_each_packing_has_another_packing_for_its_noise_floor(seed, floor):
+    assert bench.floor_seed(seed) == floor != seed
