@@ -669,7 +669,8 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   // pic regime's shares act at the agreement's rate too: of its grains' deviations from the
   // node velocity, a node's field rule closes the share `closing` over the interval. Applied
   // whole at every exchange they erased the fluctuations once per exchange, so exchanging every
-  // step ran a collapse out 9-14 % short where every 10 was within 5 % (docs/design.md 5.3).
+  // step ran a collapse out 7.6 % short on the mean of three packings, its surface 3.1-3.4 % of H0
+  // off, where every 10 was within the runs' spread (docs/design.md 5.3).
   std::vector<double> shares = field_shares ? touched_field_shares() : std::vector<double>{};
   for (double& share : shares) share *= closing;
   std::vector<std::vector<coupler::NodeUpdate>> replies(per_rank.size());
