@@ -520,7 +520,7 @@ HOSTILE_EXPECT = {
     "rezone_zone_map_short": r"answered with an error: .*the zone map has 10 cells",
     "rezone_zone_value_bad": r"answered with an error: .*the zone map gives cell 0 the unknown zone 7",
     "rezone_volume_off_grid": r"answered with an error: .*cell 1000000000 outside the grid",
-    "rezone_volume_nan": r"answered with an error: .*non-finite or negative grain volume or mass for cell 40",
+    "rezone_volume_nan": r"answered with an error: .*non-finite or negative grain volume, mass or kinetic energy for cell 40",
     "die_mid_exchange": r"exited on signal 9",
     "hang_mid_exchange": r"mpm_solver: error: no reply from the DEM host within 5 s while waiting for the grain node sums",
 }

@@ -83,7 +83,7 @@ class NodeRecord(C.Structure):
 
 
 class CellGrains(C.Structure):
-    _fields_ = [("cell", C.c_uint64), ("volume", C.c_double), ("mass", C.c_double)]
+    _fields_ = [("cell", C.c_uint64), ("volume", C.c_double), ("mass", C.c_double), ("kinetic", C.c_double)]
 
 
 class StateRequest(C.Structure):
@@ -99,7 +99,7 @@ class AbortNote(C.Structure):
 
 
 for _t, _n in ((ContinuumSettings, 472), (Hello, 664), (HelloReply, 300), (StepHeader, 56), (StepAck, 520),
-               (NodeRecord, 40), (CellGrains, 24), (StateRequest, 4104), (Finish, 16), (AbortNote, 256)):
+               (NodeRecord, 40), (CellGrains, 32), (StateRequest, 4104), (Finish, 16), (AbortNote, 256)):
     assert C.sizeof(_t) == _n, f"{_t.__name__} is {C.sizeof(_t)} bytes, the wire layout says {_n}"
 
 

@@ -56,6 +56,9 @@ std::vector<CellGrains> cell_grains(const GridGeometry<D> &grid, const DemGrains
     cell.cell = k;
     cell.volume += grain_volume<D>(g.radius[i]);
     cell.mass += g.rmass[i];
+    double speed2 = 0;
+    for (int a = 0; a < D; a++) speed2 += g.v[i][a] * g.v[i][a];
+    cell.kinetic += 0.5 * g.rmass[i] * speed2;
   }
   std::vector<CellGrains> out;
   out.reserve(cells.size());

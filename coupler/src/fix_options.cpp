@@ -15,7 +15,8 @@ namespace {
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
     "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
-    "mpm_state, every, timeout, idle, adaptive, depth, surface_depth, band, surface_packing, dilute, shear_rate, discrete, grain_type, "
+    "mpm_state, every, timeout, idle, adaptive, depth, surface_depth, band, surface_packing, dilute, shear_rate, rest_hold, "
+    "discrete, grain_type, "
     "seed, steps_per_contact, material, relax, rezone_log";
 
 [[noreturn]] void illegal(const std::string &why) { throw OptionError(why); }
@@ -58,6 +59,13 @@ double pic_option(const std::string &val) {
 }    // namespace
 
 bool set_oracle_option(OracleSettings &oracle, const std::string &key, const std::string &val) {
+  if (key == "rest_hold") {
+    if (val != "yes" && val != "no")
+      illegal("keyword 'rest_hold' must be 'yes' (cells whose material is at rest keep their zones) or 'no', not '" +
+              val + "'");
+    oracle.rest_hold = val == "yes" ? 1.0 : 0.0;
+    return true;
+  }
   double *target = nullptr;
   bool fraction = false;    // a packing fraction in (0, 1); else in (0, inf)
   const char *what = "";

@@ -109,19 +109,22 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   const std::size_t n = zones_.size();
   before_ = totals(0);
   rezone_start_energy_ = point_energy();
-  std::vector<double> volume(n, 0.0);
+  std::vector<double> volume(n, 0.0), kinetic(n, 0.0);
   std::vector<double>& grain_mass = cell_grain_mass_;
   grain_mass.assign(n, 0.0);
   for (const auto& list : volumes)
     for (const auto& r : list) {
       if (r.cell >= n)
         throw UserError("a DEM rank sent the grain volume of cell " + std::to_string(r.cell) + " outside the grid");
-      if (!std::isfinite(r.volume) || !std::isfinite(r.mass) || r.volume < 0 || r.mass < 0)
-        throw UserError("a DEM rank sent a non-finite or negative grain volume or mass for cell " +
+      if (!std::isfinite(r.volume) || !std::isfinite(r.mass) || !std::isfinite(r.kinetic) || r.volume < 0 ||
+          r.mass < 0 || r.kinetic < 0)
+        throw UserError("a DEM rank sent a non-finite or negative grain volume, mass or kinetic energy for cell " +
                         std::to_string(r.cell) + " (volume " + std::to_string(r.volume) + ", mass " +
-                        std::to_string(r.mass) + "): a grain's size, mass or position is not finite");
+                        std::to_string(r.mass) + ", kinetic energy " + std::to_string(r.kinetic) +
+                        "): a grain's size, mass, position or velocity is not finite");
       volume[r.cell] += r.volume;
       grain_mass[r.cell] += r.mass;
+      kinetic[r.cell] += r.kinetic;
     }
   auto& pts = solver_.points();
   std::vector<std::uint8_t> has_points(n, 0);
@@ -131,6 +134,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     point_cell[p] = coupler::cell_index<D>(geometry, coupler::cell_of<D>(geometry, pts.x[p]));
     has_points[point_cell[p]] = 1;
     point_mass[point_cell[p]] += pts.mass[p];
+    kinetic[point_cell[p]] += 0.5 * pts.mass[p] * pts.v[p].squaredNorm();
   }
 
   // The new zones
@@ -164,8 +168,20 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     }
     const auto packing = coupler::packing_fraction<D>(geometry, volume, has_points);
     const auto distance = coupler::zone_distance<D>(geometry, packing, box.boundary, box.solid, os);
+    // material at rest keeps its zones (coupler::hold_zones_at_rest): at rest below kRestSpeed
+    // sqrt(g d); without gravity nothing is held
+    coupler::RestHold hold;
+    const double rest_speed =
+        coupler::kRestSpeed * std::sqrt(Eigen::Map<const Eigen::Vector3d>(cs.gravity).norm() * cs.grain_diameter);
+    if (zone_source == coupler::kZonesOracle && os.rest_hold > 0 && rest_speed > 0) {
+      std::vector<double> mass(n);
+      for (std::size_t c = 0; c < n; ++c) mass[c] = grain_mass[c] + point_mass[c];
+      hold.at_rest = coupler::material_at_rest<D>(geometry, kinetic, mass, rest_speed);
+      if (std::any_of(box.boundary.begin(), box.boundary.end(), [](std::uint8_t b) { return b != 0; }))
+        hold.boundary_distance = coupler::oracle_detail::distance_to_cells<D>(geometry, box.boundary);
+    }
     next = coupler::next_zones<D>(geometry, zone_source == coupler::kZonesInitial ? std::vector<std::int8_t>{} : zones_,
-                                  distance, packing, shear, os);
+                                  distance, packing, shear, os, &hold);
     // At the start there are no previous zones to step from: go to the oracle's fixed point.
     for (int k = 0; zone_source == coupler::kZonesInitial && k < 4; ++k) {
       auto again = coupler::next_zones<D>(geometry, next, distance, packing, shear, os);

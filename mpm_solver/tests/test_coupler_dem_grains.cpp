@@ -66,6 +66,8 @@ TEST(DemGrains, VolumesPerCellAndTheCoupledGrains) {
   ASSERT_EQ(cells.size(), 1u);
   EXPECT_DOUBLE_EQ(cells[0].mass, 1.4);
   EXPECT_NEAR(cells[0].volume, M_PI * (1e-6 + 1.44e-6), 1e-18);
+  // translational kinetic energy (the oracle's rest measure): 1/2 0.5 1.25 + 1/2 0.9 4
+  EXPECT_DOUBLE_EQ(cells[0].kinetic, 0.5 * 0.5 * 1.25 + 0.5 * 0.9 * 4.0);
   // hybrid grains always; whole grains where the zone is not discrete; never the frozen one
   EXPECT_EQ(coupler::coupled_grains(a.view(), [](const double *) { return coupler::kDiscrete; }),
             std::vector<int>{0});

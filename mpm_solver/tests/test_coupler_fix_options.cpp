@@ -94,6 +94,8 @@ TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {
   EXPECT_DOUBLE_EQ(parse("cell 0.01 adaptive 100 every 10 pic 0.5").continuum.pic, 0.5);
   EXPECT_EQ(parse("cell 0.01 adaptive 100 pic regime").continuum.pic, coupler::kPicRegime);
   EXPECT_THROW(parse("cell 0.01 pic regimes"), coupler::OptionError);
+  EXPECT_EQ(parse("cell 0.01 adaptive 100 rest_hold no").oracle.rest_hold, 0.0);
+  EXPECT_THROW(parse("cell 0.01 adaptive 100 rest_hold off"), coupler::OptionError);
   EXPECT_EQ(parse("cell 0.01 adaptive 10 touch all", 3).continuum.touched_faces, 63u);
   // fix_modify's oracle keywords: false for others, the same checks
   EXPECT_TRUE(coupler::set_oracle_option(o.oracle, "depth", "0.05"));
@@ -101,6 +103,12 @@ TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {
   EXPECT_TRUE(coupler::set_oracle_option(o.oracle, "surface_depth", "0.025"));
   EXPECT_DOUBLE_EQ(o.oracle.free_surface_depth(), 0.025);
   EXPECT_FALSE(coupler::set_oracle_option(o.oracle, "every", "5"));
+  EXPECT_EQ(o.oracle.rest_hold, 1.0);    // on by default
+  EXPECT_TRUE(coupler::set_oracle_option(o.oracle, "rest_hold", "no"));
+  EXPECT_EQ(o.oracle.rest_hold, 0.0);
+  EXPECT_TRUE(coupler::set_oracle_option(o.oracle, "rest_hold", "yes"));
+  EXPECT_EQ(o.oracle.rest_hold, 1.0);
+  EXPECT_THROW(coupler::set_oracle_option(o.oracle, "rest_hold", "1"), coupler::OptionError);
   EXPECT_THROW(coupler::set_oracle_option(o.oracle, "surface_packing", "1"), coupler::OptionError);
   o.oracle.band = 0.001;
   EXPECT_THROW(coupler::check_oracle_options(o, 2), coupler::OptionError);

@@ -566,3 +566,78 @@ TEST(coupler_oracle, HybridCellsNeedAContinuumWithinTheBand) {
     }
   }
 }
+
+TEST(coupler_oracle, MaterialAtRestNeedsTheCellAndItsNeighboursStill) {
+  const auto grid = grid_of<2>(IVec<2>(6, 6), 0.1);
+  const std::size_t n = coupler::num_cells(grid);
+  const double rest_speed = 0.01;
+  std::vector<double> mass(n, 2.0), kinetic(n, 0.4 * 0.5 * rest_speed * rest_speed * 2.0);  // 0.4 of the limit
+  const auto moving = coupler::cell_index<2>(grid, IVec<2>(3, 3));
+  kinetic[moving] = 1.1 * 0.5 * rest_speed * rest_speed * 2.0;                                // just above it
+  const auto empty = coupler::cell_index<2>(grid, IVec<2>(0, 0));
+  mass[empty] = 0, kinetic[empty] = 0;
+  const auto at_rest = coupler::material_at_rest<2>(grid, kinetic, mass, rest_speed);
+  for (std::size_t c = 0; c < n; ++c) {
+    const IVec<2> k = coupler::cell_coords<2>(grid, c);
+    const bool near_moving = (k - IVec<2>(3, 3)).cwiseAbs().maxCoeff() <= 1;
+    EXPECT_EQ(at_rest[c] != 0, !near_moving) << "cell " << k.transpose();
+  }
+  // without a rest speed (no gravity) nothing with material is at rest; empty cells always are
+  const auto none = coupler::material_at_rest<2>(grid, kinetic, mass, 0.0);
+  EXPECT_EQ(std::count(none.begin(), none.end(), std::uint8_t{1}), 0);
+  EXPECT_THROW(coupler::material_at_rest<2>(grid, {}, mass, rest_speed), std::invalid_argument);
+}
+
+TEST(coupler_oracle, ZonesOfMaterialAtRestAreHeldUnlessABoundaryOrTheSurfaceClaimsThem) {
+  const auto s = band_settings();  // lo = 0.2, hi = 0.4, h = 0.1
+  using Z = std::vector<std::int8_t>;
+  const double far = std::numeric_limits<double>::infinity();
+  const auto C = coupler::kContinuum, H = coupler::kHybrid, X = coupler::kDiscrete;
+  // 0 continuum -> hybrid, a flicker (within 2h of hi)     1 the same, a boundary within hi
+  // 2 hybrid -> continuum                                   3 hybrid -> discrete, within 2h of lo
+  // 4 the same, a boundary within lo                        5 continuum, the surface came 2.5h below hi
+  // 6 hybrid, the surface came 2.5h below lo
+  const Z previous{C, C, H, H, H, C, H};
+  const std::vector<double> distance{0.35, 0.35, 0.5, 0.1, 0.1, 0.15, -0.05};
+  const std::vector<double> boundary{far, 0.35, far, 0.25, 0.15, far, far};
+  const Z oracle = coupler::update_zones(previous, distance, {}, {}, s);
+  ASSERT_EQ(oracle, (Z{H, H, C, X, X, H, X}));
+  Z held = oracle;
+  coupler::hold_zones_at_rest(previous, std::vector<std::uint8_t>(7, 1), distance, boundary, s, held);
+  EXPECT_EQ(held, (Z{C, H, H, H, X, H, X}));
+  // material that moves is not held
+  Z moving = oracle;
+  coupler::hold_zones_at_rest(previous, std::vector<std::uint8_t>(7, 0), distance, boundary, s, moving);
+  EXPECT_EQ(moving, oracle);
+  // no boundaries: only the surface limits the hold
+  Z free = oracle;
+  coupler::hold_zones_at_rest(previous, std::vector<std::uint8_t>(7, 1), distance, {}, s, free);
+  EXPECT_EQ(free, (Z{C, C, H, H, H, H, X}));
+  EXPECT_THROW(coupler::hold_zones_at_rest(previous, {1}, distance, {}, s, free), std::invalid_argument);
+}
+
+TEST(coupler_oracle, DepositAtRestKeepsItsZonesWhileTheSurfaceFlickers) {
+  // A continuum cell under a free-surface cell whose packing flips across surface_packing: its
+  // distance alternates across L + h (a deeper continuum cell beside it). Moving, it flickers
+  // between continuum and hybrid (each return to hybrid makes grains); at rest it stays
+  // continuum. A start (no previous zones) is never held.
+  const auto s = band_settings();
+  const auto grid = grid_of<2>(IVec<2>(2, 1), 0.1);
+  const std::vector<double> deep{1.0, 0.45}, shallow{1.0, 0.35};
+  for (const bool rest : {false, true}) {
+    coupler::RestHold hold;
+    hold.at_rest.assign(2, static_cast<std::uint8_t>(rest));
+    std::vector<std::int8_t> z(2, coupler::kContinuum);
+    int changes = 0;
+    for (int step = 0; step < 10; ++step) {
+      const auto next = coupler::next_zones<2>(grid, z, step % 2 ? deep : shallow, {}, {}, s, &hold);
+      changes += next != z;
+      z = next;
+    }
+    EXPECT_EQ(changes, rest ? 0 : 10) << (rest ? "at rest" : "moving");
+  }
+  coupler::RestHold hold;
+  hold.at_rest.assign(2, 1);
+  EXPECT_EQ(coupler::next_zones<2>(grid, {}, deep, {}, {}, s, &hold),
+            std::vector<std::int8_t>(2, coupler::kHybrid));
+}

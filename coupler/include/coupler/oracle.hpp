@@ -38,6 +38,8 @@ struct OracleSettings {
   double max_shear_rate = 0;  ///< cells whose shear rate exceeds this are discrete
   /// L_s: the depth below a free surface (not a wall or discrete region); <= 0: L (zone_distance)
   double surface_depth = 0;
+  /// 1: cells whose material is at rest keep their zones (hold_zones_at_rest); 0: off
+  double rest_hold = 1;
   /// The depth below free surfaces in use (L_s, or L where none is set).
   double free_surface_depth() const { return surface_depth > 0 ? surface_depth : continuum_depth; }
 };
@@ -382,12 +384,73 @@ void drop_hybrid_without_continuum(const GridGeometry<D>& grid, const std::vecto
     if (zones[c] == kHybrid && (!any || to_continuum[c] > reach * reach)) zones[c] = kDiscrete;
 }
 
-/// The zones of one oracle step: update_zones, then hybrid only near a continuum.
+/// Material at rest, per cell: the cell and each of its 3^D neighbours either hold no material
+/// or move with a mean square speed (kinetic energy over mass, grains and points together) below
+/// rest_speed^2. The neighbours count so that material about to arrive (an avalanche reaching a
+/// resting cell) keeps a cell from being held.
+template <int D>
+std::vector<std::uint8_t> material_at_rest(const GridGeometry<D>& grid, const std::vector<double>& kinetic,
+                                           const std::vector<double>& mass, double rest_speed) {
+  const std::size_t n = num_cells(grid);
+  if (kinetic.size() != n || mass.size() != n) throw std::invalid_argument("material_at_rest: input of the wrong size");
+  std::vector<std::uint8_t> still(n), at_rest(n, 0);
+  const double limit = 0.5 * rest_speed * rest_speed;  // kinetic energy per unit mass
+  for (std::size_t c = 0; c < n; ++c) still[c] = mass[c] <= 0 || kinetic[c] < limit * mass[c];
+  for (std::size_t c = 0; c < n; ++c) {
+    if (!still[c]) continue;
+    bool all = true;
+    for_each_cell_within<D>(grid, cell_coords<D>(grid, c), 1, [&](std::uint64_t k) { all = all && still[k]; });
+    at_rest[c] = all;
+  }
+  return at_rest;
+}
+
+/// Zones of material at rest stay as they were. In a deposit at rest the packing of a free-surface
+/// cell near surface_packing flips with the grains' rattling, and with it the distance of the
+/// cells below across L + h: a continuum cell turned hybrid made about 20 grains in the resting
+/// deposit and set it moving again (docs/design.md 5.5). A change is held where the cell's material
+/// is at rest (`at_rest`, material_at_rest): always towards continuum (the cell keeps more grains
+/// than the oracle asks for); towards discrete only while the cell's distance is within 2h of the
+/// threshold it crossed (a flicker, not a surface that came near: a material creeping slower than
+/// the rest speed still gets its grains at the surface) and where the distance to the boundaries
+/// alone (`boundary_distance`: walls, intruders, discrete regions; empty: none) would keep the
+/// previous zone, so that a blade or intruder moving into a bed at rest still has its grains.
+inline void hold_zones_at_rest(const std::vector<std::int8_t>& previous, const std::vector<std::uint8_t>& at_rest,
+                               const std::vector<double>& distance, const std::vector<double>& boundary_distance,
+                               const OracleSettings& s, std::vector<std::int8_t>& zones) {
+  const std::size_t n = zones.size();
+  if (previous.size() != n || at_rest.size() != n || distance.size() != n ||
+      (!boundary_distance.empty() && boundary_distance.size() != n))
+    throw std::invalid_argument("hold_zones_at_rest: input of the wrong size");
+  const double lo = s.continuum_depth - s.band, hi = s.continuum_depth + s.band;
+  for (std::size_t c = 0; c < n; ++c) {
+    if (!at_rest[c] || zones[c] == previous[c]) continue;
+    if (zones[c] > previous[c]) {
+      zones[c] = previous[c];
+      continue;
+    }
+    const double crossed = previous[c] == kContinuum ? hi : lo;  // the threshold the cell fell below
+    const double b = boundary_distance.empty() ? std::numeric_limits<double>::infinity() : boundary_distance[c];
+    if (distance[c] >= crossed - 2.0 * s.band && b >= crossed) zones[c] = previous[c];
+  }
+}
+
+/// What hold_zones_at_rest needs; no `at_rest` (empty): nothing is held.
+struct RestHold {
+  std::vector<std::uint8_t> at_rest;
+  std::vector<double> boundary_distance;
+};
+
+/// The zones of one oracle step: update_zones, the zones of material at rest held (`hold`, may be
+/// null), then hybrid only near a continuum.
 template <int D>
 std::vector<std::int8_t> next_zones(const GridGeometry<D>& grid, const std::vector<std::int8_t>& previous,
                                     const std::vector<double>& distance, const std::vector<double>& packing,
-                                    const std::vector<double>& shear_rate, const OracleSettings& s) {
+                                    const std::vector<double>& shear_rate, const OracleSettings& s,
+                                    const RestHold* hold = nullptr) {
   auto zones = update_zones(previous, distance, packing, shear_rate, s);
+  if (hold && !hold->at_rest.empty() && !previous.empty())
+    hold_zones_at_rest(previous, hold->at_rest, distance, hold->boundary_distance, s, zones);
   drop_hybrid_without_continuum<D>(grid, distance, s, zones);
   return zones;
 }

@@ -177,7 +177,7 @@ enum ZoneSource : std::int32_t {
 //   DEM leader -> MPM   StepHeader; the zone map if zone_source == kZonesGiven, else the
 //                       OracleSettings (the fix line's, changeable between runs) and the
 //                       cells in the fix's discrete regions (boundaries for the oracle)
-//   every DEM rank      CellGrains[] (its grains' volume and mass per cell)
+//   every DEM rank      CellGrains[] (its grains' volume, mass and kinetic energy per cell)
 //   MPM -> every rank   the new zone map; RezoneCell<D>[] (cells whose material moves)
 //   every DEM rank      where RezoneCell::make_grains, all DEM ranks together make new grains
 //                       (at their weight times their solid mass, with the points' affine
@@ -192,11 +192,14 @@ enum ZoneSource : std::int32_t {
 // to the points of the nearest cells that stay continuum or hybrid. Totals exact to round-off.
 
 /// DEM rank -> MPM: its grains whose centre lies in a cell, summed: their volume (the packing
-/// fraction) and carried mass (whether they can take their share of the cell's material).
+/// fraction), carried mass (whether they can take their share of the cell's material) and
+/// translational kinetic energy (whether the cell's material is at rest: the oracle holds the
+/// zones of material at rest, coupler::hold_zones_at_rest).
 struct CellGrains {
   std::uint64_t cell = 0;
   double volume = 0;
   double mass = 0;
+  double kinetic = 0;
 };
 
 /// MPM -> DEM ranks: one cell whose material moves between grains and points.

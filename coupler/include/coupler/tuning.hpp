@@ -29,4 +29,11 @@ inline constexpr double kGrainsPerPoint = 8.0;
 /// quadratic B-splines (one point per cell and axis leaves cells empty as the material shears).
 inline constexpr int kPointsPerAxis = 2;
 
+/// The speed below which the zone oracle takes a cell's material for at rest and holds its zone
+/// (hold_zones_at_rest), in units of sqrt(g d) (g gravity, d the mean grain diameter): 0.01, a
+/// kinetic energy per unit mass of 5e-5 g d, five times the decks' rest criterion on the mean
+/// kinetic energy per grain (1e-5 m g d), so that a deposit's cells are held before the whole
+/// material counts as at rest, while a flowing silo or collapse (0.1-1 sqrt(g d)) is never held.
+inline constexpr double kRestSpeed = 0.01;
+
 }  // namespace coupler

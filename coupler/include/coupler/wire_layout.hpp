@@ -13,7 +13,7 @@
 
 namespace coupler::wire_layout {
 
-static_assert(kProtocolVersion == 10, "the layouts below are those of protocol 10: update them with the version");
+static_assert(kProtocolVersion == 11, "the layouts below are those of protocol 11: update them with the version");
 
 #define COUPLER_WIRE_SIZE(T, size)                                                                     \
   static_assert(std::is_standard_layout_v<T> && std::is_trivially_copyable_v<T>,                      \
@@ -76,10 +76,11 @@ COUPLER_WIRE_FIELD(HelloReply, ok, 36, 4);
 COUPLER_WIRE_FIELD(HelloReply, mpm_ranks, 40, 4);
 COUPLER_WIRE_FIELD(HelloReply, message, 44, 256);
 
-COUPLER_WIRE_SIZE(CellGrains, 24);
+COUPLER_WIRE_SIZE(CellGrains, 32);
 COUPLER_WIRE_FIELD(CellGrains, cell, 0, 8);
 COUPLER_WIRE_FIELD(CellGrains, volume, 8, 8);
 COUPLER_WIRE_FIELD(CellGrains, mass, 16, 8);
+COUPLER_WIRE_FIELD(CellGrains, kinetic, 24, 8);
 
 COUPLER_WIRE_SIZE(StateRequest, 4104);
 COUPLER_WIRE_FIELD(StateRequest, path, 0, 4096);
@@ -149,13 +150,14 @@ COUPLER_WIRE_FIELD(Finish, exchanges, 8, 8);
 COUPLER_WIRE_SIZE(AbortNote, 256);
 COUPLER_WIRE_FIELD(AbortNote, reason, 0, 256);
 
-COUPLER_WIRE_SIZE(OracleSettings, 48);
+COUPLER_WIRE_SIZE(OracleSettings, 56);
 COUPLER_WIRE_FIELD(OracleSettings, surface_packing, 0, 8);
 COUPLER_WIRE_FIELD(OracleSettings, continuum_depth, 8, 8);
 COUPLER_WIRE_FIELD(OracleSettings, band, 16, 8);
 COUPLER_WIRE_FIELD(OracleSettings, dilute_packing, 24, 8);
 COUPLER_WIRE_FIELD(OracleSettings, max_shear_rate, 32, 8);
 COUPLER_WIRE_FIELD(OracleSettings, surface_depth, 40, 8);
+COUPLER_WIRE_FIELD(OracleSettings, rest_hold, 48, 8);
 
 COUPLER_WIRE_SIZE(CellMoments<2>, 96);
 COUPLER_WIRE_FIELD(CellMoments<2>, cell, 0, 8);
