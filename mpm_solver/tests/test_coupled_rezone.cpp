@@ -2,6 +2,7 @@
 // docs/design.md section 5.6): where a cell's material goes when its new zone cannot hold it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -10,6 +11,7 @@
 
 #include "coupler/conversion.hpp"
 #include "coupler/protocol.hpp"
+#include "coupler/tuning.hpp"
 #include "mpm/coupled_continuum.hpp"
 
 namespace {
@@ -294,6 +296,76 @@ TEST(CoupledRezone, LightGrainsWithNoPointsWithinReachAreLeftAlone) {
       EXPECT_EQ(found, band_stays && gap <= coupler::kRestReach) << "gap " << gap << ", band stays " << band_stays;
     }
   }
+}
+
+// rest_hold through the continuum's own rezone (docs/design.md 5.5, rule 7): a bed of grains
+// whose free surface rises by two cells (grains poured on top) asks the oracle to step its cells
+// under the old surface towards continuum. At rest (the grains' and points' speed below
+// kRestSpeed sqrt(g d) in the cell and its neighbours) every zone is kept; with the hold off, or
+// with the grains moving at ten times that speed, the same cells change; at half that speed they
+// are held. The kinetic energy the grains report per cell is what decides.
+TEST(CoupledRezone, ZonesOfABedAtRestAreHeldWhenItsSurfaceRises) {
+  coupler::Hello hello = square_box();
+  hello.continuum.gravity[1] = -9.81;
+  const double rest_speed =
+      coupler::kRestSpeed * std::sqrt(9.81 * hello.continuum.grain_diameter), weight = hello.continuum.grain_weight;
+  coupler::OracleSettings oracle;
+  oracle.continuum_depth = 1.5 * kCell;
+  oracle.band = 0.8 * kCell;
+  const double packed = 0.8 * kSolidContent;
+
+  struct Outcome {
+    std::vector<std::int8_t> before, after;
+  };
+  auto run = [&](bool hold, double speed) {
+    oracle.rest_hold = hold ? 1 : 0;
+    mpm::CoupledContinuum<2> continuum(hello);
+    const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+    auto cell_at = [&](int i, int j) {
+      return coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)));
+    };
+    // the bed: 8 rows of grains at rest across the box, zoned by the oracle from scratch
+    Rezone bed;
+    for (int i = 0; i < kCells; ++i)
+      for (int j = 0; j < 8; ++j) add_grains(bed, grid, cell_at(i, j), packed);
+    std::vector<coupler::GrainSums<2>> sums;  // of the cells the rezone moves
+    for (const auto& plan : continuum.plan_rezone(0.0, coupler::kZonesInitial, {}, oracle, {}, {bed.volumes}))
+      sums.push_back(bed.sums.at(plan.cell));
+    continuum.complete_rezone({sums});
+    Outcome out{continuum.zones(), {}};
+    // two rows poured on top; every cell's grains (the hybrid ones at their weight) move at `speed`
+    std::vector<coupler::CellGrains> now;
+    for (int i = 0; i < kCells; ++i)
+      for (int j = 0; j < 10; ++j) {
+        const std::uint64_t c = cell_at(i, j);
+        const int zone = out.before[c];
+        if (zone == coupler::kContinuum) continue;
+        const double carried = (zone == coupler::kHybrid ? weight : 1.0) * packed;
+        now.push_back({c, packed / kGrainDensity, carried, 0.5 * carried * speed * speed});
+      }
+    continuum.plan_rezone(0.0, coupler::kZonesOracle, {}, oracle, {}, {now});
+    out.after = continuum.zones();
+    continuum.complete_rezone({});
+    return out;
+  };
+  auto changed = [](const Outcome& o) {
+    int n = 0;
+    for (std::size_t c = 0; c < o.before.size(); ++c) {
+      if (o.after[c] == o.before[c]) continue;
+      EXPECT_GT(o.after[c], o.before[c]) << "cell " << c << ": a rising surface moves zones towards continuum";
+      ++n;
+    }
+    return n;
+  };
+  const Outcome free = run(false, 0.0);
+  ASSERT_GT(std::count(free.before.begin(), free.before.end(), coupler::kContinuum), 0) << "the bed has a continuum";
+  const int asked = changed(free);
+  ASSERT_GT(asked, 0) << "without the hold the risen surface changes zones";
+  EXPECT_EQ(changed(run(true, 0.0)), 0) << "at rest every zone is held";
+  EXPECT_EQ(changed(run(true, 0.5 * rest_speed)), 0) << "below the rest speed";
+  const Outcome moving = run(true, 10 * rest_speed);
+  EXPECT_EQ(changed(moving), asked) << "moving material is not held";
+  EXPECT_EQ(moving.after, free.after);
 }
 
 }  // namespace
