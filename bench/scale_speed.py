@@ -35,7 +35,10 @@ The 3D silo (tools/dem3d_silo.py and its twin hybrid_3d.lmp) is scaled the same 
 W = n d, H = 3 W, circular orifice D = 6 d (about 3.1 n^3 spheres: n = 12, 18, 26 give about 5k, 18k and
 55k); its hybrid at the fix's zones (grid from the grains: 4 d cells, 2^3 points of about 9 spheres), the
 four side walls touched, exchange every 10 steps; the cost model with the 3D MPM's cost per point;
---liggghts discharges each packing with pure LIGGGHTS too, the DEM's own noise floor.
+--liggghts discharges each packing with pure LIGGGHTS too, the DEM's own noise floor. The grains the
+zones keep near the floor, over the orifice and under the free surface fill about 40 d of the height
+whatever the width, so at H = 3 W LAMMPS's share falls only slowly with size; --silo3d-depth sets H / W
+for a deep bin of the same section (e.g. 10: W = 20 d, H = 200 d, about 98k spheres).
 
 Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collapse/dem_2d.lmp with
 `hybrid 2`, `hcell 0`): the DEM and the adaptive hybrid collapse from the same cached column to
@@ -58,7 +61,7 @@ suite running beside it for the first 6,060 s). With the DEM's 1 s of discharge 
 hybrids, `--sizes 160` then needs about 55 min alone on a fast day (the DEM ~43 min) and took 2 h on
 2026-11-28 (the DEM 99 min, its speed drifting 2x between chunks: compare the model's prediction).
 
-Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--liggghts]
+Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--silo3d-depth 3] [--liggghts]
                             [--collapse-sizes 50,100,200]
                             [--depths 12,24] [--surface-depths 12] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
@@ -106,9 +109,9 @@ MAX_STOP = 120.0              # s, the longest a run waits stopped while the oth
 REPLY_TIMEOUT = 600.0         # s, the silo hybrids' fix keyword timeout (deck variable htimeout): > MAX_STOP
 
 
-def silo_size(n: int, orifice: int = ORIFICE) -> dict:
-    """The silo of width n d, in metres."""
-    return dict(width=n * D, height=DEPTH * n * D, orifice=orifice * D, d=D)
+def silo_size(n: int, orifice: int = ORIFICE, depth: float = DEPTH) -> dict:
+    """The silo of width n d and fill height depth x n d, in metres."""
+    return dict(width=n * D, height=depth * n * D, orifice=orifice * D, d=D)
 
 
 def mpm_point_cost(threads: int, dim: int = 2) -> float:
@@ -225,12 +228,13 @@ class Silo:
     orifice_d: int
     log: str                       # the LAMMPS log a run writes in its directory
 
-    def __init__(self, np_: int, seed: int, tdis: float, hcell: str, **hybrid_vars):
+    def __init__(self, np_: int, seed: int, tdis: float, hcell: str, depth: float = DEPTH, **hybrid_vars):
         self.common = dict(np_=np_, seed=seed, tdis=tdis, fstop=0.9, timeout=4 * 3600)
         self.hybrid_vars = dict(hcell=hcell, **hybrid_vars)
+        self.depth = depth    # fill height over width
 
     def size(self, n: int) -> dict:
-        return silo_size(n, self.orifice_d)
+        return silo_size(n, self.orifice_d, self.depth)
 
 
 class Silo2d(Silo):
@@ -252,8 +256,8 @@ class Silo3d(Silo):
     depth and band the fix's, the four side walls touched, exchange every EVERY steps."""
     scene, dim, orifice_d, log = "silo_3d", 3, ORIFICE_3D, "log.txt"
 
-    def __init__(self, np_: int, seed: int, tdis: float, hcell: str):
-        super().__init__(np_, seed, tdis, hcell, hevery=EVERY, hdepth=0, hband=0, htouch=1)
+    def __init__(self, np_: int, seed: int, tdis: float, hcell: str, depth: float = DEPTH):
+        super().__init__(np_, seed, tdis, hcell, depth, hevery=EVERY, hdepth=0, hband=0, htouch=1)
 
     def prepare(self, n: int, work: Path) -> None:    # cached
         size = self.size(n)
@@ -299,7 +303,7 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
         noise = lig.rate / dem.rate - 1
     rows = []
     for (hvars, zones, name), (hyb, hyb_cpu), variant in zip(hybrids, timed, (None, *variants)):
-        row = dict(scene=silo.scene, grains=dem.grains, width_d=n, height_d=DEPTH * n, orifice_d=silo.orifice_d,
+        row = dict(scene=silo.scene, grains=dem.grains, width_d=n, height_d=round(silo.depth * n), orifice_d=silo.orifice_d,
                    **zones, error=hyb.rate / dem.rate - 1, runout_error=None, discharge_s=silo.common["tdis"],
                    cores=silo.common["np_"],
                    lammps_ranks=silo.common["np_"], mpm_threads=threads, rate_dem=dem.rate, rate_hybrid=hyb.rate,
@@ -380,16 +384,20 @@ def plot(rows: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, (ax, bx, cx) = plt.subplots(1, 3, figsize=(16, 4.2))
-    scenes = (("silo_2d", "o"), ("silo_3d", "s"), ("collapse_2d", "^"))
-    for (scene, marker), cores in product(scenes, sorted({r["cores"] for r in rows})):
-        mine = sorted((r for r in rows if r["scene"] == scene and r["cores"] == cores and not is_variant(r)),
-                      key=lambda r: r["grains"])
+    markers = {"silo_2d": "o", "silo_3d": "s", "collapse_2d": "^"}
+    # a family: the scene at one aspect (a silo's fill height over its width), sizes along it
+    aspect = lambda r: round(r["height_d"] / r["width_d"])  # noqa: E731
+    families = sorted({(r["scene"], aspect(r)) for r in rows}, key=lambda f: (list(markers).index(f[0]), f[1]))
+    for (scene, h_over_w), cores in product(families, sorted({r["cores"] for r in rows})):
+        mine = sorted((r for r in rows if r["scene"] == scene and aspect(r) == h_over_w and r["cores"] == cores
+                       and not is_variant(r)), key=lambda r: r["grains"])
         if not mine:
             continue
-        g = [r["grains"] for r in mine]
-        line, = ax.plot(g, [r["speedup"] for r in mine], marker + "-", label=f"{scene}, {cores} core(s), measured")
+        g, marker = [r["grains"] for r in mine], markers[scene]
+        name = scene if scene.startswith("collapse") or h_over_w == DEPTH else f"{scene}, H = {h_over_w} W"
+        line, = ax.plot(g, [r["speedup"] for r in mine], marker + "-", label=f"{name}, {cores} core(s), measured")
         ax.plot(g, [r["predicted_speedup"] for r in mine], marker + "--", color=line.get_color(), alpha=0.6,
-                label=f"{scene}, {cores} core(s), cost model")
+                label=f"{name}, {cores} core(s), cost model")
         for r in mine:
             note = f"rate {r['error']:+.1%}" if scene.startswith("silo") else f"surface {r['error']:.1%}"
             ax.annotate(note, (r["grains"], r["speedup"]), textcoords="offset points", xytext=(4, 6), fontsize=8)
@@ -473,6 +481,9 @@ def main() -> int:
     ap.add_argument("--sizes", default="40,90,160", help="silo widths in grain diameters ('' = none)")
     ap.add_argument("--silo3d-sizes", default="12,18,26",
                     help="3D silo widths in grain diameters ('' = none): about 5k, 18k and 55k spheres")
+    ap.add_argument("--silo3d-depth", type=float, default=DEPTH,
+                    help="the 3D silo's fill height over its width (the zones' grains near the floor, the orifice "
+                         "and the free surface fill a height that does not grow with the width)")
     ap.add_argument("--liggghts", action="store_true",
                     help="3D silo: also discharge each packing with pure LIGGGHTS (the DEM's noise floor)")
     ap.add_argument("--collapse-sizes", default="50,100,200", help="collapse widths L0 in grain diameters ('' = none)")
@@ -527,14 +538,15 @@ def main() -> int:
     if a.touch_floor:    # the floor touched, alone and with each of the other variants
         variants = variants + ((("touch", 2),),) + tuple((("touch", 2), *v) for v in variants)
     command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --silo3d-sizes "
-               f"'{a.silo3d_sizes}'{' --liggghts' if a.liggghts else ''} --collapse-sizes "
+               f"'{a.silo3d_sizes}'{f' --silo3d-depth {a.silo3d_depth:g}' if a.silo3d_depth != DEPTH else ''}"
+               f"{' --liggghts' if a.liggghts else ''} --collapse-sizes "
                f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
                f"{f' --surface-depths {a.surface_depths}' if a.surface_depths else ''}"
                f"{f' --every {a.every}' if a.every else ''}"
                f"{' --touch-floor' if a.touch_floor else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     saved_rows = load(path)[1] if a.keep and path.exists() else []
     saved_date = json.loads(path.read_text())["date"] if saved_rows else stamp
-    key = lambda r: (r["scene"], r["width_d"], r["cores"], r.get("pinned", False),  # noqa: E731
+    key = lambda r: (r["scene"], r["width_d"], r.get("height_d"), r["cores"], r.get("pinned", False),  # noqa: E731
                      *(r.get(k) for k in VARIANTS))
     rows: list[dict] = []
 
@@ -549,7 +561,7 @@ def main() -> int:
         save(path, old + rows, date=stamp, np=a.np_, command=command)
         write(old + rows, command, stamp, a.out)
 
-    silo2d, silo3d = (cls(a.np_, a.seed, a.tdis, a.hcell) for cls in (Silo2d, Silo3d))
+    silo2d, silo3d = Silo2d(a.np_, a.seed, a.tdis, a.hcell), Silo3d(a.np_, a.seed, a.tdis, a.hcell, a.silo3d_depth)
     if a.prepare:    # the packings only: their preparation is not timed, so it may share the machine
         for silo, ns in ((silo2d, sizes), (silo3d, sizes3d)):
             for n in ns:
