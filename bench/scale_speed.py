@@ -38,7 +38,9 @@ four side walls touched, exchange every 10 steps; the cost model with the 3D MPM
 --liggghts discharges each packing with pure LIGGGHTS too, the DEM's own noise floor. The grains the
 zones keep near the floor, over the orifice and under the free surface fill about 40 d of the height
 whatever the width, so at H = 3 W LAMMPS's share falls only slowly with size; --silo3d-depth sets H / W
-for a deep bin of the same section (e.g. 10: W = 20 d, H = 200 d, about 98k spheres).
+for a deep bin of the same section (e.g. 10: W = 20 d, H = 200 d, about 98k spheres, whose preparation
+alone is over an hour here: a pour of 40,000 steps, then settle loops of 4,000 steps at about 2 min each;
+`--prepare` caches it beside other work that does not run coupled jobs, which starve beside it).
 
 Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collapse/dem_2d.lmp with
 `hybrid 2`, `hcell 0`): the DEM and the adaptive hybrid collapse from the same cached column to
