@@ -91,9 +91,9 @@ def packing_fraction(dump: dict, width: float, d: float, margin: float = PACKING
 
 def settled(width: float, height: float, d: float, seed: int, extra: dict,
             cache_dir: str | Path | None = None) -> Settled:
-    """Cache entry of the settled silo. The orifice, tdis, fstop and tout are not part of
+    """Cache entry of the settled silo. The orifice, tdis, fstop, tout and tdump are not part of
     the key: the preparation does not depend on them (the orifice is closed)."""
-    prep_extra = {k: v for k, v in extra.items() if k not in ("orifice", "tdis", "fstop", "tout")}
+    prep_extra = {k: v for k, v in extra.items() if k not in ("orifice", "tdis", "fstop", "tout", "tdump")}
     return Settled.entry("dem_silo", f"w{width:g}_h{height:g}_d{d:g}_s{seed}",
                          dict(w=width, h=height, d=d, seed=seed, **prep_extra), (DECK,), "settled.restart",
                          cache_dir)

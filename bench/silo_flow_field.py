@@ -1,0 +1,183 @@
+#!/usr/bin/env python3
+"""The 2D silo's flow field, pure LAMMPS DEM against its adaptive hybrid twin, side by side in one
+invocation from the same cached packing (issue 14: where the hybrid's discharge differs).
+
+The DEM and the hybrid (input_decks/silo/dem_2d.lmp + hybrid_2d.lmp, the decks' defaults, exchange
+every 10, oracle every 100) discharge the 50 d silo of bench/adaptive_accuracy.py; the deck dumps the
+grains every `tdump` (its variable), the hybrid's MPM process writes frames of its grains (with their
+carried mass) and points (fix keyword `output`). Measures, over the window [t0, t1] after the opening:
+
+- the mass below heights of 10, 20, 30 and 40 d over time, and its largest excess over the DEM's
+  (the DEM's is steady within its grains' rattling: a compacting hybrid gains mass there);
+- the mean descent velocity of each row of 2.5 d (mass-weighted; the DEM's bulk moves as a plug),
+  and the velocity across the width at three heights;
+- the hybrid cells' mixture: the points' and grains' mass per cell over a cell's mass at the packing
+  (grains filling a hybrid cell at weight 0.5 leave room for half of it in points).
+
+Writes bench/results/silo_flow_field.json and .md (notes below the marker kept).
+
+    bench/silo_flow_field.py [--np 2] [--seed 12345] [--t0 0.2] [--t1 0.8]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import tempfile
+from datetime import datetime, timezone
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "tools"))
+from dem_silo import run_dem_silo  # noqa: E402
+from hgtools.report import write_report  # noqa: E402
+
+D = 0.002
+SIZE = dict(width=0.1, height=0.15, orifice=0.02, tdis=1.0, fstop=0.9, d=D)   # bench/adaptive_accuracy.py's
+ROW = 2.5 * D                 # rows and cells of the measures: the hybrid deck's cell
+HEIGHTS_D = (10, 20, 30, 40)  # mass below these heights
+PROFILE_D = (11.25, 21.25, 36.25)
+TDUMP = 0.05                  # s between the DEM's grain dumps
+FRAME_EXCHANGES = 150         # exchanges between the hybrid's frames (about 0.01 s at this deck's step)
+
+
+def dem_states(out: Path) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """(t since the opening, x, y, vx, vy, mass) of each grain dump of a run."""
+    log = (out / "log.lammps").read_text()
+    dt = float(re.search(r"^DEM timestep: .*, dt = (\S+) s", log, re.M).group(1))
+    opened = int(re.search(r"^DEM silo open: .*, step (\d+),", log, re.M).group(1))
+    states = []
+    for f in out.glob("flow.*.dump"):
+        a = np.loadtxt(f, skiprows=9, ndmin=2)
+        step = int(f.name.split(".")[1])
+        states.append(((step - opened) * dt, a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5]))
+    return sorted(states, key=lambda s: s[0])
+
+
+def hybrid_states(out: Path) -> list[tuple]:
+    """The same from the hybrid's MPM frames, grains (their carried mass) and points together, with
+    each body's zone and whether it is a point."""
+    states = []
+    with h5py.File(out / "frames" / "points.h5", "r") as f:
+        for key in sorted(f["frames"]):
+            fr = f["frames"][key]
+            g = fr["grains"]
+            x = np.concatenate([g["position"][:, 0], fr["position"][:, 0]])
+            y = np.concatenate([g["position"][:, 1], fr["position"][:, 1]])
+            vx = np.concatenate([g["velocity"][:, 0], fr["velocity"][:, 0]])
+            vy = np.concatenate([g["velocity"][:, 1], fr["velocity"][:, 1]])
+            m = np.concatenate([g["mass"][:], fr["mass"][:]])
+            zone = np.concatenate([g["zone"][:], fr["zone"][:]])
+            point = np.concatenate([np.zeros(len(g["mass"]), bool), np.ones(len(fr["mass"]), bool)])
+            states.append((float(fr.attrs["time"]), x, y, vx, vy, m, zone, point))
+    return states
+
+
+def mass_below(states, t0: float, t1: float) -> dict:
+    rows = [(s[0], [float(s[5][(s[2] > 0) & (s[2] < h * D)].sum()) for h in HEIGHTS_D]) for s in states
+            if t0 <= s[0] <= t1]
+    return dict(t=[r[0] for r in rows], mass=[r[1] for r in rows])
+
+
+def profiles(states, t0: float, t1: float, width: float) -> dict:
+    """Mass-weighted vy per row (the row's mean) and per column at PROFILE_D, averaged over the window."""
+    nx, ny = int(round(width / ROW)), int(np.ceil(SIZE["height"] / ROW))
+    m_sum, p_sum = np.zeros((ny, nx)), np.zeros((ny, nx))
+    for s in states:
+        if not t0 <= s[0] <= t1:
+            continue
+        x, y, vy, m = s[1], s[2], s[4], s[5]
+        ix, iy = np.clip((x / ROW).astype(int), 0, nx - 1), (y / ROW).astype(int)
+        ok = (iy >= 0) & (iy < ny)
+        np.add.at(m_sum, (iy[ok], ix[ok]), m[ok])
+        np.add.at(p_sum, (iy[ok], ix[ok]), (m * vy)[ok])
+    row_v = p_sum.sum(axis=1) / np.maximum(m_sum.sum(axis=1), 1e-30)
+    cols = {f"{h:g}": (p_sum[int(h * D / ROW)] / np.maximum(m_sum[int(h * D / ROW)], 1e-30)).tolist() for h in PROFILE_D}
+    return dict(row_height_d=[(j + 0.5) * ROW / D for j in range(ny)], row_vy=row_v.tolist(), columns_vy=cols)
+
+
+def hybrid_cells(states, t0: float, t1: float, packed_cell_mass: float) -> dict:
+    """Per band of 10 d: the hybrid cells' points' and grains' mass per cell over a cell's at the packing."""
+    out = {}
+    for lo in range(0, 70, 10):
+        pts, grs, n = 0.0, 0.0, 0
+        for s in states:
+            if not t0 <= s[0] <= t1:
+                continue
+            x, y, m, zone, point = s[1], s[2], s[5], s[6], s[7]
+            cell = np.floor(x / ROW).astype(int) * 100000 + np.floor(y / ROW).astype(int)
+            band = (y >= lo * D) & (y < (lo + 10) * D)
+            hyb_cells = np.unique(cell[band & point & (zone == 1)])
+            sel = np.isin(cell, hyb_cells)
+            pts += m[sel & point].sum()
+            grs += m[sel & ~point].sum()
+            n += len(hyb_cells)
+        if n:
+            out[f"{lo}-{lo + 10}"] = dict(points=pts / n / packed_cell_mass, grains=grs / n / packed_cell_mass, cells=n)
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--np", type=int, default=2, dest="np_")
+    ap.add_argument("--seed", type=int, default=12345)
+    ap.add_argument("--t0", type=float, default=0.2)
+    ap.add_argument("--t1", type=float, default=0.8)
+    ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "silo_flow_field.md")
+    a = ap.parse_args()
+    stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    common = dict(np_=a.np_, seed=a.seed, extra_vars={"mu": 0.5, "e": 0.5, "tdump": TDUMP}, **SIZE)
+    with tempfile.TemporaryDirectory(prefix="silo_flow_field_") as tmp:
+        work = Path(tmp)
+        dem = run_dem_silo(out=work / "dem", **common)
+        hyb = run_dem_silo(out=work / "hybrid", hybrid_vars={"hevery": 10, "hadapt": 100, "houtev": FRAME_EXCHANGES},
+                           **common)
+        ds, hs = dem_states(work / "dem"), hybrid_states(work / "hybrid")
+    packed = dem.packing * 2500.0 * ROW * ROW    # a cell's mass at the settled packing (2D: kg/m)
+    res = dict(date=stamp, seed=a.seed, window_s=[a.t0, a.t1], grains=dem.grains, heights_d=list(HEIGHTS_D),
+               rate_dem=dem.rate, rate_hybrid=hyb.rate, rate_error=hyb.rate / dem.rate - 1,
+               dem=dict(mass_below=mass_below(ds, 0.0, a.t1 + 0.2), **profiles(ds, a.t0, a.t1, SIZE["width"])),
+               hybrid=dict(mass_below=mass_below(hs, 0.0, a.t1 + 0.2), **profiles(hs, a.t0, a.t1, SIZE["width"]),
+                           hybrid_cells=hybrid_cells(hs, a.t0, a.t1, packed)))
+    # the largest excess of the hybrid's mass below each height over the DEM's at the same time
+    dm, hm = res["dem"]["mass_below"], res["hybrid"]["mass_below"]
+    excess = []
+    for k in range(len(HEIGHTS_D)):
+        d_at = np.interp(hm["t"], dm["t"], [m[k] for m in dm["mass"]])
+        excess.append(float(np.max(np.array([m[k] for m in hm["mass"]]) / d_at - 1)))
+    res["mass_below_excess"] = excess
+    a.out.with_suffix(".json").write_text(json.dumps(res, indent=1))
+    lines = ["# The 2D silo's flow field: LAMMPS DEM against the adaptive hybrid", "",
+             f"`bench/silo_flow_field.py --np {a.np_} --seed {a.seed} --t0 {a.t0:g} --t1 {a.t1:g}`, {stamp}: the 50 d "
+             f"silo ({dem.grains} disks, D = 10 d), both from the same packing; the hybrid at the decks' defaults "
+             f"(every 10, oracle 100). Rates: DEM {dem.rate:.3f}, hybrid {hyb.rate:.3f} kg/s/m "
+             f"({100 * res['rate_error']:+.1f} %).", "",
+             "| height (d) | mass below, DEM, kg/m (first / last) | hybrid (first / last) | largest hybrid excess |",
+             "| --- | --- | --- | --- |"]
+    for k, h in enumerate(HEIGHTS_D):
+        lines.append(f"| {h} | {dm['mass'][0][k]:.2f} / {dm['mass'][-1][k]:.2f} | {hm['mass'][0][k]:.2f} / "
+                     f"{hm['mass'][-1][k]:.2f} | {100 * excess[k]:+.1f} % |")
+    lines += ["", f"Mean descent velocity of the rows (mm/s, mass-weighted, {a.t0:g}-{a.t1:g} s):", "",
+              "| height (d) | DEM | hybrid |", "| --- | --- | --- |"]
+    for j, h in enumerate(res["dem"]["row_height_d"]):
+        if j % 2 == 0 and h < 60:
+            lines.append(f"| {h:.2f} | {1000 * res['dem']['row_vy'][j]:.1f} | {1000 * res['hybrid']['row_vy'][j]:.1f} |")
+    lines += ["", "Across the width (mm/s, columns of 2.5 d from the left wall):", ""]
+    for h in PROFILE_D:
+        for name in ("dem", "hybrid"):
+            lines.append(f"- {h:g} d, {name}: " + " ".join(f"{1000 * v:.0f}" for v in res[name]["columns_vy"][f"{h:g}"]))
+    lines += ["", "The hybrid cells' mixture, per cell over a cell's mass at the settled packing "
+              f"({packed:.4f} kg/m):", "", "| band (d) | points | grains | together | cell-frames |", "| --- | --- | --- | --- | --- |"]
+    for band, c in res["hybrid"]["hybrid_cells"].items():
+        lines.append(f"| {band} | {c['points']:.2f} | {c['grains']:.2f} | {c['points'] + c['grains']:.2f} | {c['cells']} |")
+    write_report(a.out, "\n".join(lines))
+    print(f"wrote {a.out}: rate {100 * res['rate_error']:+.1f} %, mass below 30 d up to {100 * excess[2]:+.1f} %")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
