@@ -58,11 +58,12 @@ def dem_states(out: Path) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarra
     return sorted(states, key=lambda s: s[0])
 
 
-def hybrid_states(out: Path) -> list[tuple]:
+def hybrid_states(out: Path) -> tuple[list[tuple], np.ndarray]:
     """The same from the hybrid's MPM frames, grains (their carried mass) and points together, with
-    each body's zone and whether it is a point."""
+    each body's zone and whether it is a point; and the grid's first node (the cells' origin)."""
     states = []
     with h5py.File(out / "frames" / "points.h5", "r") as f:
+        origin = np.array(f["grid_coordinates"][0, 0])
         for key in sorted(f["frames"]):
             fr = f["frames"][key]
             g = fr["grains"]
@@ -74,7 +75,7 @@ def hybrid_states(out: Path) -> list[tuple]:
             zone = np.concatenate([g["zone"][:], fr["zone"][:]])
             point = np.concatenate([np.zeros(len(g["mass"]), bool), np.ones(len(fr["mass"]), bool)])
             states.append((float(fr.attrs["time"]), x, y, vx, vy, m, zone, point))
-    return states
+    return states, origin
 
 
 def mass_below(states, t0: float, t1: float) -> dict:
@@ -100,8 +101,9 @@ def profiles(states, t0: float, t1: float, width: float) -> dict:
     return dict(row_height_d=[(j + 0.5) * ROW / D for j in range(ny)], row_vy=row_v.tolist(), columns_vy=cols)
 
 
-def hybrid_cells(states, t0: float, t1: float, packed_cell_mass: float) -> dict:
-    """Per band of 10 d: the hybrid cells' points' and grains' mass per cell over a cell's at the packing."""
+def hybrid_cells(states, origin: np.ndarray, t0: float, t1: float, packed_cell_mass: float) -> dict:
+    """Per band of 10 d: the hybrid cells' (the MPM grid's cells, from `origin`, that hold hybrid points)
+    points' and grains' mass per cell over a cell's at the packing."""
     out = {}
     for lo in range(0, 70, 10):
         pts, grs, n = 0.0, 0.0, 0
@@ -109,7 +111,7 @@ def hybrid_cells(states, t0: float, t1: float, packed_cell_mass: float) -> dict:
             if not t0 <= s[0] <= t1:
                 continue
             x, y, m, zone, point = s[1], s[2], s[5], s[6], s[7]
-            cell = np.floor(x / ROW).astype(int) * 100000 + np.floor(y / ROW).astype(int)
+            cell = np.floor((x - origin[0]) / ROW).astype(int) * 100000 + np.floor((y - origin[1]) / ROW).astype(int)
             band = (y >= lo * D) & (y < (lo + 10) * D)
             hyb_cells = np.unique(cell[band & point & (zone == 1)])
             sel = np.isin(cell, hyb_cells)
@@ -136,13 +138,13 @@ def main() -> int:
         dem = run_dem_silo(out=work / "dem", **common)
         hyb = run_dem_silo(out=work / "hybrid", hybrid_vars={"hevery": 10, "hadapt": 100, "houtev": FRAME_EXCHANGES},
                            **common)
-        ds, hs = dem_states(work / "dem"), hybrid_states(work / "hybrid")
+        ds, (hs, origin) = dem_states(work / "dem"), hybrid_states(work / "hybrid")
     packed = dem.packing * 2500.0 * ROW * ROW    # a cell's mass at the settled packing (2D: kg/m)
     res = dict(date=stamp, seed=a.seed, window_s=[a.t0, a.t1], grains=dem.grains, heights_d=list(HEIGHTS_D),
                rate_dem=dem.rate, rate_hybrid=hyb.rate, rate_error=hyb.rate / dem.rate - 1,
                dem=dict(mass_below=mass_below(ds, 0.0, a.t1 + 0.2), **profiles(ds, a.t0, a.t1, SIZE["width"])),
                hybrid=dict(mass_below=mass_below(hs, 0.0, a.t1 + 0.2), **profiles(hs, a.t0, a.t1, SIZE["width"]),
-                           hybrid_cells=hybrid_cells(hs, a.t0, a.t1, packed)))
+                           hybrid_cells=hybrid_cells(hs, origin, a.t0, a.t1, packed)))
     # the largest excess of the hybrid's mass below each height over the DEM's at the same time
     dm, hm = res["dem"]["mass_below"], res["hybrid"]["mass_below"]
     excess = []
