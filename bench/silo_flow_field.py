@@ -28,13 +28,14 @@ import tempfile
 from datetime import datetime, timezone
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 from dem_silo import run_dem_silo  # noqa: E402
+from hgtools.grains import read_dump  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
+from mpm_results import load_run, read_grains  # noqa: E402
 
 D = 0.002
 SIZE = dict(width=0.1, height=0.15, orifice=0.02, tdis=1.0, fstop=0.9, d=D)   # bench/adaptive_accuracy.py's
@@ -45,82 +46,75 @@ TDUMP = 0.05                  # s between the DEM's grain dumps
 FRAME_EXCHANGES = 150         # exchanges between the hybrid's frames (about 0.01 s at this deck's step)
 
 
-def dem_states(out: Path) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
-    """(t since the opening, x, y, vx, vy, mass) of each grain dump of a run."""
+def dem_states(out: Path) -> list[dict]:
+    """Each grain dump of a run: t since the opening and the grains' y, x, vy and mass."""
     log = (out / "log.lammps").read_text()
     dt = float(re.search(r"^DEM timestep: .*, dt = (\S+) s", log, re.M).group(1))
     opened = int(re.search(r"^DEM silo open: .*, step (\d+),", log, re.M).group(1))
     states = []
     for f in out.glob("flow.*.dump"):
-        a = np.loadtxt(f, skiprows=9, ndmin=2)
-        step = int(f.name.split(".")[1])
-        states.append(((step - opened) * dt, a[:, 1], a[:, 2], a[:, 3], a[:, 4], a[:, 5]))
-    return sorted(states, key=lambda s: s[0])
+        g = read_dump(f)
+        states.append(dict(t=(int(f.name.split(".")[1]) - opened) * dt, x=g["x"], y=g["y"], vy=g["vy"], m=g["mass"]))
+    return sorted(states, key=lambda s: s["t"])
 
 
-def hybrid_states(out: Path) -> tuple[list[tuple], np.ndarray]:
+def hybrid_states(out: Path) -> tuple[list[dict], np.ndarray]:
     """The same from the hybrid's MPM frames, grains (their carried mass) and points together, with
-    each body's zone and whether it is a point; and the grid's first node (the cells' origin)."""
+    each body's zone and whether it is a point; and the grid's origin (the cells' lower corner)."""
+    run = load_run(out / "frames")
     states = []
-    with h5py.File(out / "frames" / "points.h5", "r") as f:
-        origin = np.array(f["grid_coordinates"][0, 0])
-        for key in sorted(f["frames"]):
-            fr = f["frames"][key]
-            g = fr["grains"]
-            x = np.concatenate([g["position"][:, 0], fr["position"][:, 0]])
-            y = np.concatenate([g["position"][:, 1], fr["position"][:, 1]])
-            vx = np.concatenate([g["velocity"][:, 0], fr["velocity"][:, 0]])
-            vy = np.concatenate([g["velocity"][:, 1], fr["velocity"][:, 1]])
-            m = np.concatenate([g["mass"][:], fr["mass"][:]])
-            zone = np.concatenate([g["zone"][:], fr["zone"][:]])
-            point = np.concatenate([np.zeros(len(g["mass"]), bool), np.ones(len(fr["mass"]), bool)])
-            states.append((float(fr.attrs["time"]), x, y, vx, vy, m, zone, point))
-    return states, origin
+    for info in run.frames:
+        pts = run.frame(info.index, fields=("position", "velocity", "mass", "zone"))
+        g = read_grains(run.path, info.index)
+        # grains' vectors have three components also in 2D, the points' two: take the columns
+        both = lambda key, col=None: np.concatenate(  # noqa: E731
+            [g[key] if col is None else g[key][:, col], pts[key] if col is None else pts[key][:, col]])
+        states.append(dict(t=info.time, x=both("position", 0), y=both("position", 1), vy=both("velocity", 1),
+                           m=both("mass"), zone=both("zone"),
+                           point=np.arange(len(g["mass"]) + len(pts["mass"])) >= len(g["mass"])))
+    return states, run.grid["origin"]
 
 
-def mass_below(states, t0: float, t1: float) -> dict:
-    rows = [(s[0], [float(s[5][(s[2] > 0) & (s[2] < h * D)].sum()) for h in HEIGHTS_D]) for s in states
-            if t0 <= s[0] <= t1]
-    return dict(t=[r[0] for r in rows], mass=[r[1] for r in rows])
+def in_window(states, t0: float, t1: float) -> list[dict]:
+    return [s for s in states if t0 <= s["t"] <= t1]
 
 
-def profiles(states, t0: float, t1: float, width: float) -> dict:
-    """Mass-weighted vy per row (the row's mean) and per column at PROFILE_D, averaged over the window."""
+def mass_below(states) -> dict:
+    return dict(t=[s["t"] for s in states],
+                mass=[[float(s["m"][(s["y"] > 0) & (s["y"] < h * D)].sum()) for h in HEIGHTS_D] for s in states])
+
+
+def profiles(states, width: float) -> dict:
+    """Mass-weighted vy per row (the row's mean) and per column at PROFILE_D, averaged over the states."""
     nx, ny = int(round(width / ROW)), int(np.ceil(SIZE["height"] / ROW))
     m_sum, p_sum = np.zeros((ny, nx)), np.zeros((ny, nx))
     for s in states:
-        if not t0 <= s[0] <= t1:
-            continue
-        x, y, vy, m = s[1], s[2], s[4], s[5]
-        ix, iy = np.clip((x / ROW).astype(int), 0, nx - 1), (y / ROW).astype(int)
+        ix, iy = np.clip((s["x"] / ROW).astype(int), 0, nx - 1), (s["y"] / ROW).astype(int)
         ok = (iy >= 0) & (iy < ny)
-        np.add.at(m_sum, (iy[ok], ix[ok]), m[ok])
-        np.add.at(p_sum, (iy[ok], ix[ok]), (m * vy)[ok])
+        np.add.at(m_sum, (iy[ok], ix[ok]), s["m"][ok])
+        np.add.at(p_sum, (iy[ok], ix[ok]), (s["m"] * s["vy"])[ok])
     row_v = p_sum.sum(axis=1) / np.maximum(m_sum.sum(axis=1), 1e-30)
     cols = {f"{h:g}": (p_sum[int(h * D / ROW)] / np.maximum(m_sum[int(h * D / ROW)], 1e-30)).tolist() for h in PROFILE_D}
     return dict(row_height_d=[(j + 0.5) * ROW / D for j in range(ny)], row_vy=row_v.tolist(), columns_vy=cols)
 
 
-def hybrid_cells(states, origin: np.ndarray, t0: float, t1: float, packed_cell_mass: float) -> dict:
+def hybrid_cells(states, origin: np.ndarray, packed_cell_mass: float) -> dict:
     """Per band of 10 d: the hybrid cells' (the MPM grid's cells, from `origin`, that hold hybrid points)
     points' and grains' mass per cell over a cell's at the packing."""
-    out = {}
-    for lo in range(0, 70, 10):
-        pts, grs, n = 0.0, 0.0, 0
-        for s in states:
-            if not t0 <= s[0] <= t1:
-                continue
-            x, y, m, zone, point = s[1], s[2], s[5], s[6], s[7]
-            cell = np.floor((x - origin[0]) / ROW).astype(int) * 100000 + np.floor((y - origin[1]) / ROW).astype(int)
-            band = (y >= lo * D) & (y < (lo + 10) * D)
-            hyb_cells = np.unique(cell[band & point & (zone == 1)])
-            sel = np.isin(cell, hyb_cells)
-            pts += m[sel & point].sum()
-            grs += m[sel & ~point].sum()
-            n += len(hyb_cells)
-        if n:
-            out[f"{lo}-{lo + 10}"] = dict(points=pts / n / packed_cell_mass, grains=grs / n / packed_cell_mass, cells=n)
-    return out
+    bands = range(0, 70, 10)
+    pts, grs, n = dict.fromkeys(bands, 0.0), dict.fromkeys(bands, 0.0), dict.fromkeys(bands, 0)
+    for s in states:
+        ix, iy = (np.floor((s[c] - origin[k]) / ROW).astype(int) for k, c in enumerate("xy"))
+        cell = ix * 100000 + iy
+        hybrid_point = s["point"] & (s["zone"] == 1)
+        for lo in bands:    # the cells holding a hybrid point in the band
+            mine = np.unique(cell[hybrid_point & (s["y"] >= lo * D) & (s["y"] < (lo + 10) * D)])
+            sel = np.isin(cell, mine)
+            pts[lo] += s["m"][sel & s["point"]].sum()
+            grs[lo] += s["m"][sel & ~s["point"]].sum()
+            n[lo] += len(mine)
+    return {f"{lo}-{lo + 10}": dict(points=pts[lo] / n[lo] / packed_cell_mass, grains=grs[lo] / n[lo] / packed_cell_mass,
+                                    cells=n[lo]) for lo in bands if n[lo]}
 
 
 def main() -> int:
@@ -132,19 +126,22 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "silo_flow_field.md")
     a = ap.parse_args()
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    common = dict(np_=a.np_, seed=a.seed, extra_vars={"mu": 0.5, "e": 0.5, "tdump": TDUMP}, **SIZE)
+    common = dict(np_=a.np_, seed=a.seed, **SIZE)
+    contact = {"mu": 0.5, "e": 0.5}
     with tempfile.TemporaryDirectory(prefix="silo_flow_field_") as tmp:
         work = Path(tmp)
-        dem = run_dem_silo(out=work / "dem", **common)
-        hyb = run_dem_silo(out=work / "hybrid", hybrid_vars={"hevery": 10, "hadapt": 100, "houtev": FRAME_EXCHANGES},
-                           **common)
+        dem = run_dem_silo(out=work / "dem", extra_vars={**contact, "tdump": TDUMP}, **common)
+        hyb = run_dem_silo(out=work / "hybrid", extra_vars=contact,
+                           hybrid_vars={"hevery": 10, "hadapt": 100, "houtev": FRAME_EXCHANGES}, **common)
         ds, (hs, origin) = dem_states(work / "dem"), hybrid_states(work / "hybrid")
     packed = dem.packing * 2500.0 * ROW * ROW    # a cell's mass at the settled packing (2D: kg/m)
     res = dict(date=stamp, seed=a.seed, window_s=[a.t0, a.t1], grains=dem.grains, heights_d=list(HEIGHTS_D),
                rate_dem=dem.rate, rate_hybrid=hyb.rate, rate_error=hyb.rate / dem.rate - 1,
-               dem=dict(mass_below=mass_below(ds, 0.0, a.t1 + 0.2), **profiles(ds, a.t0, a.t1, SIZE["width"])),
-               hybrid=dict(mass_below=mass_below(hs, 0.0, a.t1 + 0.2), **profiles(hs, a.t0, a.t1, SIZE["width"]),
-                           hybrid_cells=hybrid_cells(hs, origin, a.t0, a.t1, packed)))
+               dem=dict(mass_below=mass_below(in_window(ds, 0.0, a.t1 + 0.2)),
+                        **profiles(in_window(ds, a.t0, a.t1), SIZE["width"])),
+               hybrid=dict(mass_below=mass_below(in_window(hs, 0.0, a.t1 + 0.2)),
+                           **profiles(in_window(hs, a.t0, a.t1), SIZE["width"]),
+                           hybrid_cells=hybrid_cells(in_window(hs, a.t0, a.t1), origin, packed)))
     # the largest excess of the hybrid's mass below each height over the DEM's at the same time
     dm, hm = res["dem"]["mass_below"], res["hybrid"]["mass_below"]
     excess = []
