@@ -522,6 +522,8 @@ def main() -> int:
     ap.add_argument("--work", type=Path, default=REPO / "runs" / "scale_speed")
     ap.add_argument("--out", type=Path, default=RESULTS / "scale_speed.md")
     a = ap.parse_args()
+    if not a.silo3d_depth > 0:
+        ap.error(f"--silo3d-depth is the fill height over the width and must be > 0, not {a.silo3d_depth:g}")
     path = a.out.with_suffix(".json")
     if a.render:
         saved, rows = load(path)
