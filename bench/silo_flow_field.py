@@ -12,7 +12,9 @@ carried mass) and points (fix keyword `output`). Measures, over the window [t0, 
 - the mean descent velocity of each row of 2.5 d (mass-weighted; the DEM's bulk moves as a plug),
   and the velocity across the width at three heights;
 - the hybrid cells' mixture: the points' and grains' mass per cell over a cell's mass at the packing
-  (grains filling a hybrid cell at weight 0.5 leave room for half of it in points).
+  (grains filling a hybrid cell at weight 0.5 leave room for half of it in points);
+- where the mass sits: a map of the mass per area over the packing's, rows from the floor against the
+  distance from the axis, DEM and hybrid.
 
 Writes bench/results/silo_flow_field.json and .md (notes below the marker kept).
 
@@ -44,6 +46,7 @@ HEIGHTS_D = (10, 20, 30, 40)  # mass below these heights
 PROFILE_D = (11.25, 21.25, 36.25)
 TDUMP = 0.05                  # s between the DEM's grain dumps
 FRAME_EXCHANGES = 150         # exchanges between the hybrid's frames (about 0.01 s at this deck's step)
+FILL_ROW, FILL_TOP = 5 * D, 40 * D    # the fill map's rows, and its top (the orifice's discrete region and above)
 
 
 def dem_states(out: Path) -> list[dict]:
@@ -117,6 +120,17 @@ def hybrid_cells(states, origin: np.ndarray, packed_cell_mass: float) -> dict:
                                     cells=n[lo]) for lo in bands if n[lo]}
 
 
+def fill_map(states, packed_density: float) -> list[list[float]]:
+    """Mass per area over the packing's (grains' carried mass and points together), averaged over the
+    states: rows of FILL_ROW from the floor up to FILL_TOP, columns of ROW by the distance from the
+    silo's axis (the two sides together: the silo is symmetric)."""
+    rows, cols = np.arange(0, FILL_TOP + 1e-12, FILL_ROW), np.arange(0, SIZE["width"] / 2 + 1e-12, ROW)
+    acc = np.zeros((len(rows) - 1, len(cols) - 1))
+    for s in states:
+        acc += np.histogram2d(s["y"], np.abs(s["x"] - SIZE["width"] / 2), bins=(rows, cols), weights=s["m"])[0]
+    return (acc / max(len(states), 1) / (2 * FILL_ROW * ROW) / packed_density).tolist()
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--np", type=int, default=2, dest="np_")
@@ -135,6 +149,7 @@ def main() -> int:
                            hybrid_vars={"hevery": 10, "hadapt": 100, "houtev": FRAME_EXCHANGES}, **common)
         ds, (hs, origin) = dem_states(work / "dem"), hybrid_states(work / "hybrid")
     packed = dem.packing * 2500.0 * ROW * ROW    # a cell's mass at the settled packing (2D: kg/m)
+    fills = {name: fill_map(in_window(states, a.t0, a.t1), dem.packing * 2500.0) for name, states in (("dem", ds), ("hybrid", hs))}
     res = dict(date=stamp, seed=a.seed, window_s=[a.t0, a.t1], grains=dem.grains, heights_d=list(HEIGHTS_D),
                rate_dem=dem.rate, rate_hybrid=hyb.rate, rate_error=hyb.rate / dem.rate - 1,
                dem=dict(mass_below=mass_below(in_window(ds, 0.0, a.t1 + 0.2)),
@@ -149,6 +164,7 @@ def main() -> int:
         d_at = np.interp(hm["t"], dm["t"], [m[k] for m in dm["mass"]])
         excess.append(float(np.max(np.array([m[k] for m in hm["mass"]]) / d_at - 1)))
     res["mass_below_excess"] = excess
+    res["fill_map"] = dict(row_d=FILL_ROW / D, column_d=ROW / D, **fills)
     a.out.with_suffix(".json").write_text(json.dumps(res, indent=1))
     lines = ["# The 2D silo's flow field: LAMMPS DEM against the adaptive hybrid", "",
              f"`bench/silo_flow_field.py --np {a.np_} --seed {a.seed} --t0 {a.t0:g} --t1 {a.t1:g}`, {stamp}: the 50 d "
@@ -173,6 +189,15 @@ def main() -> int:
               f"({packed:.4f} kg/m):", "", "| band (d) | points | grains | together | cell-frames |", "| --- | --- | --- | --- | --- |"]
     for band, c in res["hybrid"]["hybrid_cells"].items():
         lines.append(f"| {band} | {c['points']:.2f} | {c['grains']:.2f} | {c['points'] + c['grains']:.2f} | {c['cells']} |")
+    lines += ["", f"Where the mass sits ({a.t0:g}-{a.t1:g} s): mass per area over the packing's, rows of "
+              f"{FILL_ROW / D:g} d from the floor, columns of {ROW / D:g} d by the distance from the axis (the orifice's "
+              f"half-width is {SIZE['orifice'] / 2 / D:g} d, its discrete region {2 * SIZE['orifice'] / D:g} d high):", "",
+              "| rows (d) | run | " + " | ".join(f"{k * ROW / D:g}-{(k + 1) * ROW / D:g}" for k in range(len(fills["dem"][0])))
+              + " |", "| --- | --- |" + " --- |" * len(fills["dem"][0])]
+    for i in range(len(fills["dem"])):
+        for name in ("dem", "hybrid"):
+            lines.append(f"| {i * FILL_ROW / D:g}-{(i + 1) * FILL_ROW / D:g} | {name} | "
+                         + " | ".join(f"{v:.2f}" for v in fills[name][i]) + " |")
     write_report(a.out, "\n".join(lines))
     print(f"wrote {a.out}: rate {100 * res['rate_error']:+.1f} %, mass below 30 d up to {100 * excess[2]:+.1f} %")
     return 0
