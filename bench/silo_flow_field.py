@@ -148,8 +148,9 @@ def main() -> int:
         hyb = run_dem_silo(out=work / "hybrid", extra_vars=contact,
                            hybrid_vars={"hevery": 10, "hadapt": 100, "houtev": FRAME_EXCHANGES}, **common)
         ds, (hs, origin) = dem_states(work / "dem"), hybrid_states(work / "hybrid")
-    packed = dem.packing * 2500.0 * ROW * ROW    # a cell's mass at the settled packing (2D: kg/m)
-    fills = {name: fill_map(in_window(states, a.t0, a.t1), dem.packing * 2500.0) for name, states in (("dem", ds), ("hybrid", hs))}
+    packed_density = dem.packing * 2500.0        # the settled packing's mass per area (2D: kg/m per m^2)
+    packed = packed_density * ROW * ROW          # a cell's mass at it (kg/m)
+    fills = {name: fill_map(in_window(states, a.t0, a.t1), packed_density) for name, states in (("dem", ds), ("hybrid", hs))}
     res = dict(date=stamp, seed=a.seed, window_s=[a.t0, a.t1], grains=dem.grains, heights_d=list(HEIGHTS_D),
                rate_dem=dem.rate, rate_hybrid=hyb.rate, rate_error=hyb.rate / dem.rate - 1,
                dem=dict(mass_below=mass_below(in_window(ds, 0.0, a.t1 + 0.2)),
