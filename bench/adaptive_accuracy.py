@@ -110,29 +110,44 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds)
     return rows
 
 
-def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds) -> list[dict]:
+# The 2D silos (input_decks/silo/dem_2d.lmp + hybrid_2d.lmp), D = 10 d, 1 s of discharge. "deep" is
+# bench/scale_speed.py's smallest (H = 3 W) at the fix's own grid from the grains (6 d cells, points of
+# about 9 disks: what a user of the fix gets); "shallow" the 50 d silo of the rows before 2026-12-02
+# at the deck's 2.5 d cells (points of about 1.6 disks), whose 6 d cells would leave it no continuum.
+SILOS = {
+    "deep": dict(label="W 40 d, H 120 d, the fix's cells from the grains",
+                 size=dict(width=40 * D, height=120 * D, orifice=10 * D), hybrid={"hcell": 0}),
+    "shallow": dict(label="W 50 d, H 75 d, the deck's 2.5 d cells",
+                    size=dict(width=50 * D, height=75 * D, orifice=10 * D), hybrid={}),
+}
+SILO_DEFAULT, SILO_BEFORE = "deep", "shallow"    # rows without a `silo` key are SILO_BEFORE's
+
+
+def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DEFAULT) -> list[dict]:
     size = dict(width=0.06, height=0.08, orifice=0.016, tdis=0.8, fstop=0.6) if quick else \
-        dict(width=0.1, height=0.15, orifice=0.02, tdis=1.0, fstop=0.9)
+        dict(SILOS[silo]["size"], tdis=1.0, fstop=0.9)
+    hybrid = {} if quick else SILOS[silo]["hybrid"]
     common = dict(d=D, np_=np_, extra_vars={"mu": 0.5, "e": 0.5}, **size)
     dems = {}
 
     def dem(s):    # once per packing
         if s not in dems:
-            dems[s] = run_dem_silo(out=work / f"silo_dem_s{s}", seed=s, **common)
+            dems[s] = run_dem_silo(out=work / f"silo_{silo}_dem_s{s}", seed=s, **common)
         return dems[s]
 
     rows = []
     for seed, every, oracle in ((s, e, o) for s in seeds for e, o in pairs):
         ref, other = dem(seed), dem(floor_seed(seed))
-        name = f"silo_s{seed}_e{every}_o{oracle}"
-        hyb = run_dem_silo(out=work / name, seed=seed, hybrid_vars={"hevery": every, "hadapt": oracle}, **common)
+        name = f"silo_{silo}_s{seed}_e{every}_o{oracle}"
+        hyb = run_dem_silo(out=work / name, seed=seed, hybrid_vars={"hevery": every, "hadapt": oracle, **hybrid}, **common)
         rows.append(dict(
-            scene="silo_2d", grains=ref.grains, aspect=None, seed=seed, exchange_every=every, oracle_every=oracle,
+            scene="silo_2d", silo=None if quick else silo, grains=ref.grains, aspect=None, seed=seed,
+            exchange_every=every, oracle_every=oracle,
             runout_error=None, surface_error=None, ke_error=None, rate_error=hyb.rate / ref.rate - 1,
             steps_ratio=None, noise_floor=other.rate / ref.rate - 1, rate_error_se=rate_ratio_se(hyb, ref),
             noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
             dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time))
-        print(f"silo, seed {seed}, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
+        print(f"silo ({silo}), seed {seed}, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
     return rows
 
 
@@ -184,7 +199,7 @@ def table(rows: list[dict]) -> list[str]:
             f"surface {100 * r['noise_floor']:.1f} %, runout {pct(r['noise_floor_runout'])}, "
             f"KE {100 * r['noise_floor_ke']:.1f} %, steps x{r['noise_floor_steps_ratio']:.2f}")
         lines.append(" | ".join([
-            f"| {r['scene']}", str(r["grains"]), "" if r["aspect"] is None else f"{r['aspect']:g}",
+            f"| {scene_name(r)}", str(r["grains"]), "" if r["aspect"] is None else f"{r['aspect']:g}",
             str(r.get("seed", "")), str(r["exchange_every"]), str(r["oracle_every"]), pct(r["runout_error"]),
             "" if r["surface_error"] is None else f"{100 * r['surface_error']:.1f} %",
             "" if r["ke_error"] is None else f"{100 * r['ke_error']:.1f} %", pct(r["rate_error"], r.get("rate_error_se")),
@@ -198,7 +213,7 @@ def mean_table(rows: list[dict]) -> list[str]:
     groups = {}
     for r in rows:
         if r["scene"] in ("collapse_2d", "silo_2d") and "seed" in r:
-            groups.setdefault((r["scene"], r["aspect"], r["exchange_every"], r["oracle_every"]), []).append(r)
+            groups.setdefault((scene_name(r), r["aspect"], r["exchange_every"], r["oracle_every"]), []).append(r)
     groups = {k: g for k, g in groups.items() if len({r["seed"] for r in g}) > 1}
     if not groups:
         return []
@@ -233,6 +248,8 @@ def main() -> int:
     ap.add_argument("--seeds", default=str(REFERENCE_SEED),
                     help=f"packings of the 2D scenes, comma-separated (the reference {REFERENCE_SEED} first)")
     ap.add_argument("--aspects", default="2,0.5", help="aspect ratios of collapse_2d (2 and/or 0.5)")
+    ap.add_argument("--silo", choices=sorted(SILOS), default=SILO_DEFAULT,
+                    help="silo_2d's silo: " + "; ".join(f"{k}: {v['label']}" for k, v in SILOS.items()))
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "adaptive_accuracy.md")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of the JSON that this run does not measure again (each row has its "
@@ -264,7 +281,7 @@ def main() -> int:
         work = Path(tmp)
         jobs = [(f"collapse_2d a = {a:g}", lambda a=a: collapse_2d(work, args.np_, a, width[a], pairs, seeds))
                 for a in aspects if "collapse_2d" in scenes]
-        jobs += [(name, job) for name, job in (("silo_2d", lambda: silo_2d(work, args.np_, args.quick, pairs, seeds)),
+        jobs += [(name, job) for name, job in (("silo_2d", lambda: silo_2d(work, args.np_, args.quick, pairs, seeds, args.silo)),
                                                ("collapse_3d", lambda: collapse_3d(work, args.np_)),
                                                ("silo_3d", lambda: silo_3d(work, args.np_))) if name in scenes]
         for name, job in jobs:    # a scene that fails is reported; the others' figures are kept
@@ -279,9 +296,19 @@ def main() -> int:
     return 0
 
 
+def silo_of(r: dict) -> str | None:
+    """A silo_2d row's silo (SILOS; a quick run's reduced one: None), other scenes' None."""
+    return r.get("silo", SILO_BEFORE) if r["scene"] == "silo_2d" else None
+
+
+def scene_name(r: dict) -> str:
+    return r["scene"] if silo_of(r) is None else f"{r['scene']} {silo_of(r)}"
+
+
 def row_key(r: dict) -> tuple:
-    """What a row measures: its scene (a failed one: the whole scene), aspect, packing and numerics."""
-    return (r["scene"], r.get("aspect"), r.get("seed", REFERENCE_SEED), r.get("exchange_every"), r.get("oracle_every"))
+    """What a row measures: its scene (a failed one: the whole scene) and silo, aspect, packing and numerics."""
+    return (r["scene"], silo_of(r), r.get("aspect"), r.get("seed", REFERENCE_SEED), r.get("exchange_every"),
+            r.get("oracle_every"))
 
 
 def merge(kept: list[dict], rows: list[dict]) -> list[dict]:
@@ -293,7 +320,8 @@ def merge(kept: list[dict], rows: list[dict]) -> list[dict]:
 def command(args) -> str:
     return (f"bench/adaptive_accuracy.py{' --quick' if args.quick else ''} --np {args.np_} --scenes {args.scenes}"
             f"{'' if args.quick else f' --exchanges {args.exchanges} --oracles {args.oracles}'}"
-            f" --seeds {args.seeds}{f' --aspects {args.aspects}' if 'collapse_2d' in args.scenes else ''}")
+            f" --seeds {args.seeds}{f' --aspects {args.aspects}' if 'collapse_2d' in args.scenes else ''}"
+            f"{f' --silo {args.silo}' if 'silo_2d' in args.scenes and not args.quick else ''}")
 
 
 SCENE_ORDER = ("collapse_2d", "silo_2d", "collapse_3d", "silo_3d")
@@ -302,7 +330,7 @@ SCENE_ORDER = ("collapse_2d", "silo_2d", "collapse_3d", "silo_3d")
 def write(args, rows: list[dict]) -> None:
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     order = {name: k for k, name in enumerate(SCENE_ORDER)}
-    rows = sorted(rows, key=lambda r: (order.get(r["scene"].split(" ")[0], len(order)), -(r.get("aspect") or 0),
+    rows = sorted(rows, key=lambda r: (order.get(r["scene"].split(" ")[0], len(order)), silo_of(r) or "", -(r.get("aspect") or 0),
                                        r.get("exchange_every") or 0, r.get("oracle_every") or 0,
                                        r.get("seed") != REFERENCE_SEED, r.get("seed") or 0))
     runs = sorted({(r.get("date", stamp), r.get("command", command(args))) for r in rows})

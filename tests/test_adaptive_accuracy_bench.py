@@ -58,3 +58,26 @@ def test_means_over_packings_are_the_rows_means_and_need_two_packings():
                                          (3, bench.REFERENCE_SEED)])
 def test_each_packing_has_another_packing_for_its_noise_floor(seed, floor):
     assert bench.floor_seed(seed) == floor != seed
+
+
+def silo(seed, rate, silo_name=None, date="old") -> dict:
+    r = dict(scene="silo_2d", aspect=None, seed=seed, exchange_every=10, oracle_every=100, rate_error=rate,
+             steps_ratio=None, noise_floor=0.005, date=date)
+    if silo_name is not None:
+        r["silo"] = silo_name
+    return r
+
+
+def test_the_deep_silo_stands_beside_the_shallow_one_it_does_not_replace():
+    ref = bench.REFERENCE_SEED
+    shallow = [silo(ref, 0.03), silo(2, 0.05)]          # written before rows named their silo
+    deep = [silo(ref, -0.02, "deep", "new"), silo(2, -0.04, "deep", "new")]
+    merged = bench.merge(shallow, deep)
+    assert merged == shallow + deep
+    # a rerun of the deep silo replaces the deep rows only
+    again = [silo(ref, -0.01, "deep", "newer")]
+    assert bench.merge(merged, again) == shallow + deep[1:] + again
+    means = {line.split("|")[1].strip(): line for line in bench.mean_table(merged) if line.startswith("| silo_2d")}
+    assert set(means) == {f"silo_2d {bench.SILO_DEFAULT}", f"silo_2d {bench.SILO_BEFORE}"}
+    assert means["silo_2d deep"].split("|")[8].strip() == "-3.0 %"
+    assert means["silo_2d shallow"].split("|")[8].strip() == "+4.0 %"
