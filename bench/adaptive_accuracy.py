@@ -341,7 +341,8 @@ def write(args, rows: list[dict]) -> None:
              "packing; the noise floor is the DEM from another packing against it (same measure). The hybrid "
              "runs with the fix's defaults of its row's date (adaptive zones; the grain update pic 0 before "
              "2026-11-29, pic regime with its share per exchange on 2026-11-29, at the agreement's rate since "
-             "2026-12-01) and the decks' material; rows with a packing come from each packing's own DEM.", ""]
+             "2026-12-01) and the decks' material; rows with a packing come from each packing's own DEM. The 2D silos: "
+             + "; ".join(f"{k}, {v['label']}" for k, v in SILOS.items()) + ".", ""]
     lines += table([r for r in rows if "failed" not in r])
     lines += mean_table([r for r in rows if "failed" not in r])
     lines += [f"\n{r['scene']} failed: {r['failed'][:300]}" for r in rows if "failed" in r]
