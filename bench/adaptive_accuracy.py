@@ -9,7 +9,8 @@ Scenes and measures:
 - collapse_2d, a = 2 and a = 0.5 (input_decks/column_collapse/dem_2d.lmp, `hybrid 2`): runout
   (Lf - L0)/L0, final surface (RMS over H0), kinetic-energy history (RMS over the DEM's peak),
   steps to rest over the DEM's (the deck's rest criterion);
-- silo_2d (input_decks/silo/dem_2d.lmp + hybrid_2d.lmp): steady discharge rate;
+- silo_2d (input_decks/silo/dem_2d.lmp + hybrid_2d.lmp): steady discharge rate; --silo deep (the default:
+  W = 40 d, H = 120 d at the fix's grid from the grains) or shallow (W = 50 d, H = 75 d at the deck's 2.5 d cells);
 - collapse_3d, silo_3d (tools/dem3d_collapse.py, dem3d_silo.py, code hybrid): runout and rate
   at the default numerics; their noise floor is LIGGGHTS against LAMMPS from the same grains.
 Every hybrid row also gives the energy ledger's closure (largest residual over the largest
@@ -22,7 +23,7 @@ gives the mean over the packings of each numerics pair.
 
 Usage: bench/adaptive_accuracy.py [--np 2] [--quick] [--scenes collapse_2d,silo_2d,...]
                                   [--exchanges 1,5,10,20] [--oracles 100,300,1000]
-                                  [--seeds 12345,2] [--aspects 2,0.5]
+                                  [--seeds 12345,2] [--aspects 2,0.5] [--silo deep]
 Writes bench/results/adaptive_accuracy.json (a list `rows`) and .md.
 """
 from __future__ import annotations
@@ -111,8 +112,8 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds)
 
 
 # The 2D silos (input_decks/silo/dem_2d.lmp + hybrid_2d.lmp), D = 10 d, 1 s of discharge. "deep" is
-# bench/scale_speed.py's smallest (H = 3 W) at the fix's own grid from the grains (6 d cells, points of
-# about 9 disks: what a user of the fix gets); "shallow" the 50 d silo of the rows before 2026-12-02
+# bench/scale_speed.py's smallest (H = 3 W) at the fix's own grid from the grains (5.7 d cells, points of
+# 8.5 disks: what a user of the fix gets); "shallow" the 50 d silo of the rows before 2026-12-02
 # at the deck's 2.5 d cells (points of about 1.6 disks), whose 6 d cells would leave it no continuum.
 SILOS = {
     "deep": dict(label="W 40 d, H 120 d, the fix's cells from the grains",
