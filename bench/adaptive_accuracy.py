@@ -48,6 +48,7 @@ from hgtools.discharge import rate_ratio_se  # noqa: E402
 from hgtools.logs import ledger_closure, thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
+from scale_speed import silo_size  # noqa: E402
 
 D = 0.002
 REFERENCE_SEED = 12345                          # the packing of the decks and the tests
@@ -117,18 +118,18 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds)
 # at the deck's 2.5 d cells (points of about 1.6 disks), whose 6 d cells would leave it no continuum.
 SILOS = {
     "deep": dict(label="W 40 d, H 120 d, the fix's cells from the grains",
-                 size=dict(width=40 * D, height=120 * D, orifice=10 * D), hybrid={"hcell": 0}),
+                 size=silo_size(40), hybrid={"hcell": 0}),
     "shallow": dict(label="W 50 d, H 75 d, the deck's 2.5 d cells",
-                    size=dict(width=50 * D, height=75 * D, orifice=10 * D), hybrid={}),
+                    size=dict(width=50 * D, height=75 * D, orifice=10 * D, d=D), hybrid={}),
 }
 SILO_DEFAULT, SILO_BEFORE = "deep", "shallow"    # rows without a `silo` key are SILO_BEFORE's
 
 
 def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DEFAULT) -> list[dict]:
-    size = dict(width=0.06, height=0.08, orifice=0.016, tdis=0.8, fstop=0.6) if quick else \
+    size = dict(width=0.06, height=0.08, orifice=0.016, d=D, tdis=0.8, fstop=0.6) if quick else \
         dict(SILOS[silo]["size"], tdis=1.0, fstop=0.9)
     hybrid = {} if quick else SILOS[silo]["hybrid"]
-    common = dict(d=D, np_=np_, extra_vars={"mu": 0.5, "e": 0.5}, **size)
+    common = dict(np_=np_, extra_vars={"mu": 0.5, "e": 0.5}, **size)
     dems = {}
 
     def dem(s):    # once per packing
@@ -148,7 +149,7 @@ def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DE
             steps_ratio=None, noise_floor=other.rate / ref.rate - 1, rate_error_se=rate_ratio_se(hyb, ref),
             noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
             dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time))
-        print(f"silo ({silo}), seed {seed}, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
+        print(f"silo ({'reduced' if quick else silo}), seed {seed}, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
     return rows
 
 
