@@ -14,7 +14,7 @@ namespace {
 
 const char *const kKeywords =
     "cell, continuum, hybrid_width, weight, model, youngs, poisson, friction, mu_s, mu_2, I0, diameter, "
-    "grain_density, critical_packing, wall, container, touch, cfl, pic, support, points_per_cell, inertia, output, "
+    "grain_density, critical_packing, wall, container, touch, cfl, pic, support, fill, points_per_cell, inertia, output, "
     "mpm_state, every, timeout, idle, adaptive, depth, surface_depth, band, surface_packing, dilute, shear_rate, rest_hold, "
     "discrete, grain_type, "
     "seed, steps_per_contact, material, relax, rezone_log";
@@ -387,6 +387,10 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
       c.support_gain = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; },
                               "keyword 'support' (gain of the support force between exchanges) must be in [0, 1], "
                               "not ");
+    else if (key == "fill")
+      c.fill_share = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; },
+                            "keyword 'fill' (the fill pressure's modulus as a share of the continuum's bulk "
+                            "modulus; 0 = none) must be in [0, 1], not ");
     else if (key == "points_per_cell") {
       c.points_per_axis = integer(key, val);
       o.points_given = true;
@@ -452,6 +456,15 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
   // settling deposit wandering (1.7-2.2x the DEM's steps to rest). Each node's rule from the
   // flow regime there does both (docs/design.md section 5.3).
   if (o.adaptive() && !o.pic_given) c.pic = kPicRegime;
+  // The fill pressure stiffens the points it acts on by up to fill x K < fill x M (M the P-wave
+  // modulus the stable step is set by): their wave speed grows by under sqrt(1 + fill)
+  if (c.cfl * std::sqrt(1.0 + c.fill_share) > 1.0)
+    illegal("keywords 'cfl' " + shortest(c.cfl) + " and 'fill' " + shortest(c.fill_share) +
+            ": the fill pressure raises the continuum's wave speed by up to sqrt(1 + fill), so cfl must be at most " +
+            shortest(1.0 / std::sqrt(1.0 + c.fill_share)) + " with it; lower cfl or fill");
+  // the fill a node of points and grains may hold (the fill pressure's reference), the packing the
+  // grid's cell is chosen for
+  c.packing_fraction = grid_packing(o, dimension);
   if (o.grain_type > ntypes)
     illegal("keyword 'grain_type' " + std::to_string(o.grain_type) + " is not an atom type (1 to " +
             std::to_string(ntypes) + ")");

@@ -9,6 +9,7 @@
 #include "coupler/flow_regime.hpp"
 #include "coupler/oracle.hpp"
 #include "coupler/stencil.hpp"
+#include "coupler/fill_pressure.hpp"
 #include "coupler/support_force.hpp"
 #include "coupler/tuning.hpp"
 #include "coupler/zones.hpp"
@@ -86,6 +87,11 @@ CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
   dem_momentum_.assign(grid.num_nodes(), Vec<D>::Zero());
   support_.assign(grid.num_nodes(), coupler::SupportNode<D>{});
   touched_slot_.assign(grid.num_nodes(), -1);
+  // The fill pressure's stiffness, at most fill x K < fill x M (M = lambda + 2G, the P-wave
+  // modulus of the stable step), is not in the stable step: the fix keeps cfl sqrt(1 + fill) <= 1.
+  fill_modulus_ = hello.continuum.fill_share * solver_.materials().front().template bulk_modulus<D>();
+  full_node_mass_ = hello.continuum.packing_fraction * hello.continuum.grain_density * std::pow(grid.dx, D);
+  fill_pressure_.assign(grid.num_nodes(), 0.0);
   const std::string dir = coupler::get_text(hello.continuum.output_path);
   if (hello.continuum.output_every > 0 && !dir.empty()) {
     Scene scene = solver_.scene();
@@ -651,6 +657,8 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   for (std::size_t t = 0; t < touched_.size(); ++t) old_support[t] = support_[touched_[t]];
   for (std::size_t k : support_nodes_) support_[k] = coupler::SupportNode<D>{};
   support_nodes_.clear();
+  for (std::size_t k : fill_nodes_) fill_pressure_[k] = 0.0;
+  fill_nodes_.clear();
   for (std::size_t t = 0; t < touched_.size(); ++t) {
     const std::size_t k = touched_[t];
     const double m_dem = dem_mass_[k];
@@ -669,6 +677,12 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
       grid.momentum[k] = v_mpm_new;
       agreement_change += 0.5 * m_mpm * (v_mpm_new.squaredNorm() - v_mpm.squaredNorm());
       ++shared_nodes_;
+      // the mixture's overfill: points and grains together above the packing's mass push the
+      // points apart until the next exchange (docs/design.md section 5.4)
+      if (fill_modulus_ > 0) {
+        const double pressure = coupler::fill_pressure(m_mpm + m_dem, full_node_mass_, fill_modulus_);
+        if (pressure > 0) fill_pressure_[k] = pressure, fill_nodes_.push_back(k);
+      }
       if (gain > 0) {
         const double reduced = m_dem * m_mpm / (m_dem + m_mpm);
         support_[k] = coupler::next_support<D>(old_support[t], v_dem - v_mpm, reduced, closing,
@@ -714,22 +728,28 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
 }
 
 /// The points' share of the reaction to the support force, -F_i split over the points by
-/// their mass at the node: sum_p m_p a_p = -sum_i F_i exactly. Uses the weights of the
-/// current substep's P2G (call before G2P moves the points).
+/// their mass at the node: sum_p m_p a_p = -sum_i F_i exactly; and each point's fill pressure,
+/// its nodes' interpolated (an isotropic stress: its forces on the nodes sum to zero, so it
+/// moves no momentum). Uses the weights of the current substep's P2G (call before G2P moves
+/// the points).
 template <int D>
-void CoupledContinuum<D>::apply_support_reaction() {
+void CoupledContinuum<D>::apply_exchange_loads() {
   auto& pts = solver_.points();
   std::fill(pts.body_accel.begin(), pts.body_accel.end(), Vec<D>::Zero());
-  if (support_nodes_.empty()) return;
+  std::fill(pts.fill_pressure.begin(), pts.fill_pressure.end(), 0.0);
+  if (support_nodes_.empty() && fill_nodes_.empty()) return;
   const Grid<D>& grid = solver_.grid();
   const auto& geometry = static_cast<const coupler::GridGeometry<D>&>(grid);
   for (std::size_t p = 0; p < pts.size(); ++p) {
     Vec<D> a = Vec<D>::Zero();
+    double fill = 0;
     coupler::for_each_stencil_node<D>(coupler::QuadraticStencil<D>(grid.to_cell_units(pts.x[p])), geometry,
                                       [&](std::size_t k, double w, const auto&) {
                                         if (grid.mass[k] > 0) a -= (w / grid.mass[k]) * support_[k].force;
+                                        fill += w * fill_pressure_[k];
                                       });
     pts.body_accel[p] = a;
+    pts.fill_pressure[p] = fill;
   }
 }
 
@@ -754,7 +774,7 @@ void CoupledContinuum<D>::balance_support(const Vec<D>& grain_force) {
 template <int D>
 void CoupledContinuum<D>::complete_step() {
   if (pending_dt_ < 0) return;
-  apply_support_reaction();
+  apply_exchange_loads();
   solver_.g2p(pending_dt_);
   solver_.advance_clock(pending_dt_);
   time_ = open_time_;
@@ -902,6 +922,8 @@ void CoupledContinuum<D>::load(const std::string& path) {
     throw UserError("the MPM state " + path + " was saved with another box, cell size or model than this run's "
                     "fix hybrid/mpm line; restart with the same box, cell and model");
   zones_ = std::move(state.zones);
+  for (std::size_t k : fill_nodes_) fill_pressure_[k] = 0.0;  // the points carry theirs
+  fill_nodes_.clear();
   for (std::size_t k : support_nodes_) support_[k] = coupler::SupportNode<D>{};
   support_nodes_.clear();
   for (std::size_t i = 0; i < state.support_nodes.size(); ++i) {

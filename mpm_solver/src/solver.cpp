@@ -319,8 +319,11 @@ void Solver<D>::p2g(double dt) {
     for (std::size_t p = begin; p < end; ++p) {
       const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
       const double m = points_.mass[p];
-      // MLS-MPM: the stress force and the APIC affine momentum share one matrix.
-      const Mat<D> affine = m * points_.C[p] - (stress_scale * points_.volume(p)) * points_.stress[p];
+      // MLS-MPM: the stress force and the APIC affine momentum share one matrix. A coupled run's
+      // fill pressure adds to the stress as -p I (docs/design.md section 5.4).
+      const double force_scale = stress_scale * points_.volume(p);
+      Mat<D> affine = m * points_.C[p] - force_scale * points_.stress[p];
+      affine.diagonal().array() += force_scale * points_.fill_pressure[p];
       const Vec<D> mv = m * (points_.v[p] + dt * points_.body_accel[p]);
       const std::size_t base = grid_.index(st.base);
       lo = std::min(lo, base);

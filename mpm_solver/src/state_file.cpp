@@ -2,14 +2,14 @@
 //
 // Layout (floating point data float64 in the file as in memory, so values round-trip exactly):
 //
-//   /                  attributes: format = "mpm-coupled-state", format_version (int32) = 2,
+//   /                  attributes: format = "mpm-coupled-state", format_version (int32) = 3,
 //                      dimension (int32), mpm_version (string), time, solver_time (float64),
 //                      solver_steps, dem_step, exchanges (int64), cell (float64),
 //                      box_lo, box_hi (3 x float64), model (int32, coupler::ModelId)
 //   /points/           one dataset per Particles field, named as the struct member; N points:
 //       x, v, body_accel             N x D
 //       C, stress, be                N x D x D, row-major: [p, i, j] = M(i, j)
-//       mass, volume0, J, plastic_strain   N
+//       mass, volume0, J, plastic_strain, fill_pressure   N
 //       material                     N, uint16
 //       weight                       N, float32
 //   /zones             int8, one per grid cell
@@ -19,7 +19,8 @@
 //   /support_budgets   energy each support force may still give the relative motion (J, J/m in 2D)
 //   /support_gaps      support_nodes x D, v_dem - v_mpm the last agreement left at each
 //
-// Version 2 added the support budgets and gaps (coupler/support_force.hpp).
+// Version 2 added the support budgets and gaps (coupler/support_force.hpp), version 3 the points'
+// fill pressure (docs/design.md section 5.4).
 #include "mpm/state_file.hpp"
 
 #include <filesystem>
@@ -33,7 +34,7 @@ namespace mpm {
 namespace {
 
 constexpr const char* kFormat = "mpm-coupled-state";
-constexpr int kFormatVersion = 2;
+constexpr int kFormatVersion = 3;
 constexpr const char* kKind = "MPM state file";
 
 /// Empty if the state's arrays have consistent lengths, else what is wrong.

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "coupler/conversion.hpp"
+#include "coupler/fill_pressure.hpp"
 #include "coupler/protocol.hpp"
 #include "coupler/tuning.hpp"
 #include "mpm/coupled_continuum.hpp"
@@ -68,6 +69,28 @@ coupler::StepAck rezone(mpm::CoupledContinuum<2>& continuum, const std::vector<s
   for (const auto& [cell, s] : r.sums) sums.push_back(s);
   continuum.complete_rezone({sums});
   return continuum.totals(0);
+}
+
+/// Makes the cells 3 to 8 of both axes continuum, their points from grains of `mass` a cell moving
+/// at velocity(j) in row j.
+template <class Velocity>
+void continuum_block(mpm::CoupledContinuum<2>& continuum, double mass, Velocity velocity) {
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+  Rezone start;
+  for (int i = 3; i <= 8; ++i)
+    for (int j = 3; j <= 8; ++j) {
+      const std::uint64_t c =
+          coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)));
+      zones[c] = coupler::kContinuum;
+      add_grains(start, grid, c, mass, {1, 1, 1, 1}, velocity(j));
+    }
+  rezone(continuum, zones, start);
+}
+
+/// The grid node nearest to (x, y).
+std::uint64_t node_nearest(const coupler::GridGeometry<2>& grid, double x, double y) {
+  return grid.index(((Eigen::Vector2d(x, y) - grid.origin) / kCell).array().round().cast<int>().matrix());
 }
 
 /// The points' mass in each cell.
@@ -384,19 +407,8 @@ TEST(CoupledRezone, FieldSharesFollowTheFlowRegimeOfThePoints) {
     hello.continuum.agreement_time = agreement_time;
     mpm::CoupledContinuum<2> continuum(hello);
     const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
-    std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
-    Rezone start;
-    for (int i = 3; i <= 8; ++i)
-      for (int j = 3; j <= 8; ++j) {
-        const std::uint64_t c =
-            coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)));
-        zones[c] = coupler::kContinuum;
-        add_grains(start, grid, c, 0.8 * kSolidContent, {1, 1, 1, 1}, Eigen::Vector2d(shear * kCell * (j - 5.5), 0.0));
-      }
-    rezone(continuum, zones, start);
-    auto node_at = [&](double x, double y) {
-      return grid.index(((Eigen::Vector2d(x, y) - grid.origin) / kCell).array().round().cast<int>().matrix());
-    };
+    continuum_block(continuum, 0.8 * kSolidContent, [&](int j) { return Eigen::Vector2d(shear * kCell * (j - 5.5), 0.0); });
+    auto node_at = [&](double x, double y) { return node_nearest(grid, x, y); };
     // the centre, the lower corner, the upper corner (reached only by the corner points' stencils,
     // at their far end), and a node two cells out of the block
     const std::vector<std::uint64_t> nodes = {node_at(0.06, 0.06), node_at(0.03, 0.03), node_at(0.10, 0.10),
@@ -415,5 +427,65 @@ TEST(CoupledRezone, FieldSharesFollowTheFlowRegimeOfThePoints) {
       EXPECT_NEAR(replies[0][n].field_share, inside, 1e-15) << "node " << n << ", shear " << shear
                                                            << ", agreement time " << agreement_time;
     EXPECT_EQ(replies[0][3].field_share, 0.0) << "shear " << shear << ", agreement time " << agreement_time;
+  }
+}
+
+// The fill pressure (docs/design.md section 5.4): a node whose points and coupled grains hold
+// more than the packing's mass pushes its points apart, by an isotropic stress whose forces on
+// the nodes sum to zero, so the continuum's momentum stays what it was to round-off. A node at
+// the packing, or one whose grains leave it below, pushes nothing; with fill 0 nothing moves.
+TEST(CoupledFill, AnOverfullNodePushesItsPointsApartWithMomentumExact) {
+  constexpr double kInterval = 1e-5, kPacking = 0.8;
+  EXPECT_EQ(coupler::fill_pressure(1.0, 1.0, 1e5), 0.0);
+  EXPECT_EQ(coupler::fill_pressure(0.9, 1.0, 1e5), 0.0);
+  EXPECT_DOUBLE_EQ(coupler::fill_pressure(1.2, 1.0, 1e5), 2e4);
+  for (const double fill : {0.0, 0.1}) {
+    coupler::Hello hello = square_box();
+    hello.continuum.fill_share = fill;
+    hello.continuum.packing_fraction = kPacking;
+    mpm::CoupledContinuum<2> continuum(hello);
+    const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+    // a block of points at the packing, at rest
+    continuum_block(continuum, kPacking * kSolidContent, [](int) { return Eigen::Vector2d::Zero().eval(); });
+    auto node_at = [&](double x, double y) { return node_nearest(grid, x, y); };
+    const double full = kPacking * kSolidContent;
+    // grains at rest on the block's centre node (a fifth over the packing with the points) and on a
+    // node of its edge, whose points hold half a node: that one stays below the packing
+    const std::vector<coupler::NodeRecord> records = {{node_at(0.06, 0.06), 0.2 * full, {0, 0, 0}},
+                                                      {node_at(0.03, 0.06), 0.2 * full, {0, 0, 0}}};
+    continuum.advance_to(kInterval);
+    continuum.agree({records});
+    continuum.complete_step();
+    const auto& pts = continuum.solver().points();
+    const Eigen::Vector2d centre(0.06, 0.06), edge(0.03, 0.06);
+    const double modulus = fill * continuum.solver().materials().front().bulk_modulus<2>();
+    double at_centre = 0, at_edge = 0;
+    for (std::size_t p = 0; p < pts.size(); ++p) {
+      EXPECT_GE(pts.fill_pressure[p], 0.0);
+      if ((pts.x[p] - centre).norm() < 0.4 * kCell) at_centre = std::max(at_centre, pts.fill_pressure[p]);
+      if ((pts.x[p] - edge).norm() < 0.4 * kCell) at_edge = std::max(at_edge, pts.fill_pressure[p]);
+    }
+    // a point a quarter cell from the node on each axis has weight N(1/4)^2 = (3/4 - 1/16)^2 there
+    EXPECT_NEAR(at_centre, 0.6875 * 0.6875 * 0.2 * modulus, 1e-9 * (1 + modulus)) << "fill " << fill;
+    EXPECT_EQ(at_edge, 0.0) << "fill " << fill;
+    // the next substep's P2G and grid update carry the pressure's forces to the nodes
+    continuum.advance_to(2 * kInterval);
+    const auto& g = continuum.solver().grid();
+    Eigen::Vector2d momentum = Eigen::Vector2d::Zero();
+    double outward = 0, scale = 0;
+    for (std::size_t k = 0; k < g.num_nodes(); ++k) {
+      if (!(g.mass[k] > 0)) continue;
+      const Eigen::Vector2d x = g.node_position(g.node_of(k));
+      momentum += g.mass[k] * g.momentum[k];  // a velocity after the grid update
+      outward += g.mass[k] * g.momentum[k].dot(x - centre);
+      scale += g.mass[k] * g.momentum[k].norm();
+    }
+    if (fill == 0) {
+      EXPECT_EQ(scale, 0.0) << "no fill pressure: the points at rest stay at rest";
+    } else {
+      EXPECT_GT(outward, 0.0) << "the overfull node pushes its points apart";
+      EXPECT_GT(scale, 0.0);
+      EXPECT_LT(momentum.norm(), 1e-12 * scale) << "the fill pressure moves no momentum";
+    }
   }
 }

@@ -79,6 +79,22 @@ TEST(FixOptions, KeywordsSetTheirValues) {
   EXPECT_EQ(o.mpm_state_path, "s.h5");
   EXPECT_EQ(o.grain_type, 2);
   EXPECT_DOUBLE_EQ(o.relax_time, 0.0);
+  EXPECT_DOUBLE_EQ(o.continuum.fill_share, 0.0);    // the fill pressure is off unless asked for
+  EXPECT_DOUBLE_EQ(o.continuum.packing_fraction, 0.82);    // 2D without a material: grid_packing's
+  EXPECT_DOUBLE_EQ(parse("cell 0.01", 3).continuum.packing_fraction, 0.60);
+  EXPECT_DOUBLE_EQ(parse("cell 0.01 fill 0.1").continuum.fill_share, 0.1);
+}
+
+TEST(FixOptions, FillPressureNeedsAShareOfTheModulusAndAStableStep) {
+  EXPECT_EQ(error_of("cell 0.01 fill 1.5"),
+            "keyword 'fill' (the fill pressure's modulus as a share of the continuum's bulk modulus; 0 = none) must be "
+            "in [0, 1], not 1.5");
+  EXPECT_EQ(error_of("cell 0.01 fill -0.1").rfind("keyword 'fill' ", 0), 0u);
+  EXPECT_EQ(error_of("cell 0.01 fill 1 cfl 0.7"), "(no error)");
+  EXPECT_EQ(error_of("cell 0.01 fill 1 cfl 0.8"),
+            "keywords 'cfl' 0.8 and 'fill' 1: the fill pressure raises the continuum's wave speed by up to "
+            "sqrt(1 + fill), so cfl must be at most 0.7071067811865475 with it; lower cfl or fill");
+  EXPECT_EQ(error_of("cell 0.01 cfl 1"), "(no error)");    // without it, the cfl may be 1
 }
 
 TEST(FixOptions, AdaptiveZonesSetTheOracleAndPicDefaults) {

@@ -65,6 +65,7 @@ ContinuumState<D> random_state(int n_points, int n_cells, int n_support, unsigne
     p.material.push_back(static_cast<std::uint16_t>(rng()));
     p.weight.push_back(static_cast<float>(u(rng)));
     p.body_accel.push_back(vec());
+    p.fill_pressure.push_back(u(rng));
   }
   for (int c = 0; c < n_cells; ++c) s.zones.push_back(static_cast<std::int8_t>(rng() % 3));
   for (int k = 0; k < n_support; ++k) {
@@ -104,6 +105,7 @@ void expect_identical(const ContinuumState<D>& a, const ContinuumState<D>& b) {
   EXPECT_TRUE(same_bits(p.material, q.material));
   EXPECT_TRUE(same_bits(p.weight, q.weight));
   EXPECT_TRUE(same_bits(p.body_accel, q.body_accel));
+  EXPECT_TRUE(same_bits(p.fill_pressure, q.fill_pressure));
   EXPECT_TRUE(same_bits(a.zones, b.zones));
   EXPECT_TRUE(same_bits(a.support_nodes, b.support_nodes));
   EXPECT_TRUE(same_bits(a.support_forces, b.support_forces));
@@ -232,7 +234,7 @@ TEST(StateFile, OtherFormatVersionIsRefused) {
     const int version = 99;
     ASSERT_GE(H5Awrite(attr.get(), H5T_NATIVE_INT, &version), 0);
   }
-  expect_user_error([&] { load_state<2>(path); }, {path, "format version 99", "reads version 2"});
+  expect_user_error([&] { load_state<2>(path); }, {path, "format version 99", "reads version 3"});
 }
 
 TEST(StateFile, SaveErrorNamesThePath) {

@@ -119,6 +119,13 @@ struct ContinuumSettings {
   /// Gain of the support force between exchanges (0 = none): each exchange adds
   /// support_gain * lambda / interval to the force the sides exert on each other at a node.
   double support_gain = 1.0;
+  /// The fill pressure's modulus as a share of the continuum's bulk modulus (0 = none): a node
+  /// whose points and coupled grains hold more than the packing's mass pushes its points apart
+  /// (docs/design.md section 5.4).
+  double fill_share = 0.0;
+  /// The grains' packing fraction at rest (the calibration's; 0 = not known): the fill a node
+  /// of points and grains may hold, as packing_fraction * grain_density * cell volume.
+  double packing_fraction = 0.0;
   std::int32_t points_per_axis = 2;   ///< material points per cell and axis
   std::int32_t output_every = 0;      ///< exchanges between output frames, 0 = none
   char output_path[kTextSize] = {};   ///< HDF5 file the MPM process writes frames to
@@ -285,7 +292,7 @@ struct StepAck {
   /// its kinetic (with the APIC affine part), potential and stored elastic energy at this message (the agreed grid at an exchange, the points
   /// after a rezone) and, summed since the start, what changed it.
   double energy = 0;
-  double energy_physics = 0;         ///< the continuum's own steps: stress, walls, transfers, support reaction
+  double energy_physics = 0;         ///< the continuum's own steps: stress, walls, transfers, support reaction, fill
   double energy_agreement = 0;       ///< the velocity agreements on the continuum's nodes
   double energy_rezone = 0;          ///< points made, removed and corrected by rezones
 };

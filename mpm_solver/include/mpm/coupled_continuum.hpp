@@ -76,7 +76,9 @@ class CoupledContinuum {
   double time() const { return time_; }
 
  private:
-  void apply_support_reaction();
+  /// Sets the points' loads until the next exchange from the last agreement's nodes: the
+  /// reaction to the support force (body_accel) and the fill pressure (fill_pressure).
+  void apply_exchange_loads();
   /// Share of a cell's material its grains carry in a zone (1 discrete, the weight hybrid).
   double grain_share(int zone) const;
   /// A planned cell of a rezone: its plan, its points (indices) and their sums.
@@ -139,6 +141,11 @@ class CoupledContinuum {
   double interval_ = 0;               ///< time since the previous exchange, s
   std::vector<coupler::SupportNode<D>> support_;  ///< each node's support force until the next exchange
   std::vector<std::size_t> support_nodes_;  ///< nodes where a support force is set
+  /// The fill pressure (docs/design.md section 5.4): its modulus (a share of the bulk modulus, 0 =
+  /// none), the mass of a node at the packing, and the last agreement's pressure per node.
+  double fill_modulus_ = 0, full_node_mass_ = 0;
+  std::vector<double> fill_pressure_;
+  std::vector<std::size_t> fill_nodes_;     ///< nodes where fill_pressure_ is set
   std::unique_ptr<SnapshotWriter<D>> writer_;
 };
 

@@ -25,6 +25,9 @@ struct Particles {
   /// Coupled runs: acceleration from the support force of the grains until the next
   /// exchange (zero otherwise), m/s^2.
   std::vector<Vec<D>> body_accel;
+  /// Coupled runs: the fill pressure at the point until the next exchange (zero otherwise), Pa;
+  /// P2G adds it to the point's stress as -p I (docs/design.md section 5.4).
+  std::vector<double> fill_pressure;
 
   std::size_t size() const { return x.size(); }
   double volume(std::size_t p) const { return volume0[p] * J[p]; }
@@ -43,6 +46,7 @@ struct Particles {
     material.push_back(mat);
     weight.push_back(1.0f);
     body_accel.push_back(Vec<D>::Zero());
+    fill_pressure.push_back(0.0);
   }
 };
 
@@ -50,7 +54,7 @@ struct Particles {
 /// one list of fields for code that must treat all of them alike (sorting, state files).
 template <class P, class F>
 void for_each_point_field(P& pts, F&& f) {
-  static_assert(sizeof(pts) == 12 * sizeof(std::vector<double>), "a Particles field was added: list it here");
+  static_assert(sizeof(pts) == 13 * sizeof(std::vector<double>), "a Particles field was added: list it here");
   f("x", pts.x);
   f("v", pts.v);
   f("C", pts.C);
@@ -63,6 +67,7 @@ void for_each_point_field(P& pts, F&& f) {
   f("material", pts.material);
   f("weight", pts.weight);
   f("body_accel", pts.body_accel);
+  f("fill_pressure", pts.fill_pressure);
 }
 
 /// Removes the points with remove[p] != 0, keeping the order of the others.
