@@ -9,8 +9,10 @@ Scenes and measures:
 - collapse_2d, a = 2 and a = 0.5 (input_decks/column_collapse/dem_2d.lmp, `hybrid 2`): runout
   (Lf - L0)/L0, final surface (RMS over H0), kinetic-energy history (RMS over the DEM's peak),
   steps to rest over the DEM's (the deck's rest criterion);
-- silo_2d (input_decks/silo/dem_2d.lmp + hybrid_2d.lmp): steady discharge rate; --silo deep (the default:
-  W = 40 d, H = 120 d at the fix's grid from the grains) or shallow (W = 50 d, H = 75 d at the deck's 2.5 d cells);
+- silo_2d (input_decks/silo/dem_2d.lmp + hybrid_2d.lmp): steady discharge rate, and the compaction (the
+  material below 40 d over the DEM's, 0.2-0.8 s after the opening, from grain dumps and MPM frames every
+  0.05 s); --silo deep (the default: W = 40 d, H = 120 d at the fix's grid from the grains) or shallow
+  (W = 50 d, H = 75 d at the deck's 2.5 d cells);
 - collapse_3d, silo_3d (tools/dem3d_collapse.py, dem3d_silo.py, code hybrid): runout and rate
   at the default numerics; their noise floor is LIGGGHTS against LAMMPS from the same grains.
 Every hybrid row also gives the energy ledger's closure (largest residual over the largest
@@ -24,6 +26,10 @@ gives the mean over the packings of each numerics pair.
 Usage: bench/adaptive_accuracy.py [--np 2] [--quick] [--scenes collapse_2d,silo_2d,...]
                                   [--exchanges 1,5,10,20] [--oracles 100,300,1000]
                                   [--seeds 12345,2] [--aspects 2,0.5] [--silo deep]
+                                  [--hybrid-vars hfill=0.1,hsupport=0 [--hybrid-vars ...]]
+--hybrid-vars sets deck variables of the 2D hybrid twins (a variant of the coupling against the
+fix's defaults); given several times, each variant runs against the same DEM runs. Their rows name
+them and are kept apart from the defaults' rows.
 Writes bench/results/adaptive_accuracy.json (a list `rows`) and .md.
 """
 from __future__ import annotations
@@ -45,10 +51,11 @@ from column_collapse import combine_surfaces, points_surface, surface_error  # n
 from dem_collapse import run as run_collapse, run_from_settled  # noqa: E402
 from dem_silo import run_dem_silo  # noqa: E402
 from hgtools.discharge import rate_ratio_se  # noqa: E402
-from hgtools.logs import ledger_closure, thermo_rows  # noqa: E402
+from hgtools.logs import ledger_closure, number as log_number, thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
 from scale_speed import silo_size  # noqa: E402
+from silo_flow_field import dem_states, hybrid_states  # noqa: E402
 
 D = 0.002
 REFERENCE_SEED = 12345                          # the packing of the decks and the tests
@@ -74,7 +81,12 @@ def floor_seed(seed: int) -> int:
     return OTHER_SEED if seed == REFERENCE_SEED else REFERENCE_SEED
 
 
-def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds) -> list[dict]:
+def variant_name(variant: dict) -> str:
+    """A run directory's suffix for the deck variables of a variant ('' for the fix's defaults)."""
+    return "".join(f"_{k}{v}" for k, v in sorted(variant.items()))
+
+
+def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds, variants=({},)) -> list[dict]:
     common = dict(aspect=aspect, width=width, d=D, np_=np_)
     h0 = aspect * width
     dems = {}
@@ -86,15 +98,15 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds)
         return dems[s]
 
     rows = []
-    for seed, every, oracle in ((s, e, o) for s in seeds for e, o in pairs):
+    for variant, seed, every, oracle in ((v, s, e, o) for v in variants for s in seeds for e, o in pairs):
         (ref, ref_ke), (other, other_ke) = dem(seed), dem(floor_seed(seed))
         ref_surface = np.array(ref.profile).T
         floor = dict(surface=surface_error(np.array(other.profile).T, ref_surface, h0),
                      runout=other.runout / ref.runout - 1, ke=kinetic_energy_error(other_ke, ref_ke),
                      steps=other.steps / ref.steps)
-        name = f"hybrid_a{aspect:g}_s{seed}_e{every}_o{oracle}"
+        name = f"hybrid_a{aspect:g}_s{seed}_e{every}_o{oracle}{variant_name(variant)}"
         hyb = run_collapse(**common, out=work / name, seed=seed,
-                           hybrid_vars={"hybrid": 2, "hevery": every, "hadapt": oracle})
+                           hybrid_vars={"hybrid": 2, "hevery": every, "hadapt": oracle, **variant})
         points = load_run(work / name / "frames").frame(-1)["position"]
         surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, width / 20, 2 * D))
         rows.append(dict(
@@ -105,8 +117,9 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds)
             rate_error=None, steps_ratio=hyb.steps / ref.steps, hybrid_at_rest=hyb.at_rest,
             noise_floor=floor["surface"], noise_floor_runout=floor["runout"], noise_floor_ke=floor["ke"],
             noise_floor_steps_ratio=floor["steps"], ledger_closure=closure(work / name / "log.lammps"),
-            dem_value=ref.runout, hybrid_value=hyb.runout, speedup=ref.wall_time / hyb.wall_time))
-        print(f"collapse a = {aspect:g}, seed {seed}, every {every}, oracle {oracle}: "
+            dem_value=ref.runout, hybrid_value=hyb.runout, speedup=ref.wall_time / hyb.wall_time,
+            **({"hybrid_vars": variant} if variant else {})))
+        print(f"collapse a = {aspect:g}{variant_label(rows[-1])}, seed {seed}, every {every}, oracle {oracle}: "
               f"runout {rows[-1]['runout_error']:+.1%}, "
               f"surface {rows[-1]['surface_error']:.1%}, steps x{rows[-1]['steps_ratio']:.2f}", flush=True)
     return rows
@@ -125,31 +138,68 @@ SILOS = {
 SILO_DEFAULT, SILO_BEFORE = "deep", "shallow"    # rows without a `silo` key are SILO_BEFORE's
 
 
-def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DEFAULT) -> list[dict]:
+# The silo's compaction: its material (grains' carried mass and points) below COMPACTION_HEIGHT over the
+# DEM's at the same time, averaged over COMPACTION_WINDOW after the opening, from the DEM's grain dumps and
+# the hybrid's MPM frames every COMPACTION_EVERY s. The band's cells holding more than the packing's mass
+# (points over grains) show as an excess that grows as the silo discharges (docs/design.md 5.3-5.4).
+COMPACTION_HEIGHT, COMPACTION_WINDOW, COMPACTION_EVERY = 40 * D, (0.2, 0.8), 0.05
+
+
+def mass_below(states, height: float = COMPACTION_HEIGHT) -> tuple[np.ndarray, np.ndarray]:
+    """Times and the mass below `height` (above the floor) of states (silo_flow_field's)."""
+    t = np.array([st["t"] for st in states])
+    m = np.array([st["m"][(st["y"] > 0) & (st["y"] < height)].sum() for st in states])
+    return t, m
+
+
+def compaction(states, reference) -> float:
+    """The mean over COMPACTION_WINDOW of states' mass below COMPACTION_HEIGHT over reference's (at the
+    same time, interpolated), less 1."""
+    t, m = mass_below(states)
+    t_ref, m_ref = mass_below(reference)
+    inside = (t >= COMPACTION_WINDOW[0] - 1e-9) & (t <= COMPACTION_WINDOW[1] + 1e-9)
+    return float(np.mean(m[inside] / np.interp(t[inside], t_ref, m_ref)) - 1) if inside.any() else float("nan")
+
+
+def frame_every(dem_log: Path, every: int) -> int:
+    """Exchanges between the hybrid's MPM frames for one every COMPACTION_EVERY s, at the DEM's step."""
+    dt = log_number(r"^DEM timestep: .*, dt = (\S+) s", dem_log.read_text())
+    return max(1, round(COMPACTION_EVERY / (dt * every)))
+
+
+def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DEFAULT, variants=({},)) -> list[dict]:
     size = dict(width=0.06, height=0.08, orifice=0.016, d=D, tdis=0.8, fstop=0.6) if quick else \
         dict(SILOS[silo]["size"], tdis=1.0, fstop=0.9)
     hybrid = {} if quick else SILOS[silo]["hybrid"]
     common = dict(np_=np_, extra_vars={"mu": 0.5, "e": 0.5}, **size)
     dems = {}
 
-    def dem(s):    # once per packing
+    def dem(s):    # once per packing, with its grains dumped for the compaction
         if s not in dems:
-            dems[s] = run_dem_silo(out=work / f"silo_{silo}_dem_s{s}", seed=s, **common)
+            out = work / f"silo_{silo}_dem_s{s}"
+            res = run_dem_silo(out=out, seed=s, **dict(common, extra_vars={**common["extra_vars"], "tdump": COMPACTION_EVERY}))
+            dems[s] = res, out, dem_states(out)
         return dems[s]
 
     rows = []
-    for seed, every, oracle in ((s, e, o) for s in seeds for e, o in pairs):
-        ref, other = dem(seed), dem(floor_seed(seed))
-        name = f"silo_{silo}_s{seed}_e{every}_o{oracle}"
-        hyb = run_dem_silo(out=work / name, seed=seed, hybrid_vars={"hevery": every, "hadapt": oracle, **hybrid}, **common)
+    for variant, seed, every, oracle in ((v, s, e, o) for v in variants for s in seeds for e, o in pairs):
+        (ref, ref_out, ref_states), (other, _, other_states) = dem(seed), dem(floor_seed(seed))
+        name = f"silo_{silo}_s{seed}_e{every}_o{oracle}{variant_name(variant)}"
+        frames = {"houtev": frame_every(ref_out / "log.lammps", every), "hout": work / name / "frames"}
+        hyb = run_dem_silo(out=work / name, seed=seed,
+                           hybrid_vars={"hevery": every, "hadapt": oracle, **hybrid, **variant, **frames}, **common)
+        hyb_states, _ = hybrid_states(work / name)
         rows.append(dict(
             scene="silo_2d", silo=None if quick else silo, grains=ref.grains, aspect=None, seed=seed,
             exchange_every=every, oracle_every=oracle,
             runout_error=None, surface_error=None, ke_error=None, rate_error=hyb.rate / ref.rate - 1,
             steps_ratio=None, noise_floor=other.rate / ref.rate - 1, rate_error_se=rate_ratio_se(hyb, ref),
             noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
-            dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time))
-        print(f"silo ({'reduced' if quick else silo}), seed {seed}, every {every}, oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}", flush=True)
+            dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time,
+            compaction=compaction(hyb_states, ref_states), noise_floor_compaction=compaction(other_states, ref_states),
+            **({"hybrid_vars": variant} if variant else {})))
+        print(f"silo ({'reduced' if quick else silo}){variant_label(rows[-1])}, seed {seed}, every {every}, "
+              f"oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}, compaction {rows[-1]['compaction']:+.1%}", flush=True)
     return rows
 
 
@@ -193,8 +243,9 @@ def pct(v, se=None) -> str:
 
 def table(rows: list[dict]) -> list[str]:
     lines = ["| scene | grains | a | packing | exchange every | oracle every | runout | surface / H0 | KE history | "
-             "rate | steps to rest / DEM's | noise floor (another packing) | ledger closure | speed vs DEM |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "rate | compaction (floor) | steps to rest / DEM's | noise floor (another packing) | ledger closure | "
+             "speed vs DEM |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
         floor = pct(r["noise_floor"], r.get("noise_floor_se")) + (f" ({r['noise_floor_is']})" if "noise_floor_is" in r else "") \
             if r["scene"] != "collapse_2d" else (
@@ -205,6 +256,7 @@ def table(rows: list[dict]) -> list[str]:
             str(r.get("seed", "")), str(r["exchange_every"]), str(r["oracle_every"]), pct(r["runout_error"]),
             "" if r["surface_error"] is None else f"{100 * r['surface_error']:.1f} %",
             "" if r["ke_error"] is None else f"{100 * r['ke_error']:.1f} %", pct(r["rate_error"], r.get("rate_error_se")),
+            "" if r.get("compaction") is None else f"{pct(r['compaction'])} ({pct(r['noise_floor_compaction'])})",
             "" if r["steps_ratio"] is None else f"{r['steps_ratio']:.2f}", floor,
             f"{r['ledger_closure']:.1e}", f"{r['speedup']:.2f}x |"]))
     return lines
@@ -220,9 +272,9 @@ def mean_table(rows: list[dict]) -> list[str]:
     if not groups:
         return []
     lines = ["", "Means over the packings (each packing's hybrid against its own DEM):", "",
-             "| scene | a | packings | exchange every | oracle every | runout | surface / H0 | rate | "
+             "| scene | a | packings | exchange every | oracle every | runout | surface / H0 | rate | compaction | "
              "steps to rest / DEM's | noise floors |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
 
     def mean(g, key, scale=100.0, fmt="{:+.1f} %"):
         v = [r[key] for r in g if r.get(key) is not None]
@@ -233,7 +285,7 @@ def mean_table(rows: list[dict]) -> list[str]:
         lines.append(" | ".join([
             f"| {scene}", "" if aspect is None else f"{aspect:g}", ", ".join(str(r["seed"]) for r in g), str(every),
             str(oracle), mean(g, "runout_error"), mean(g, "surface_error", fmt="{:.1f} %"), mean(g, "rate_error"),
-            mean(g, "steps_ratio", scale=1.0, fmt="{:.2f}"), floors + " |"]))
+            mean(g, "compaction"), mean(g, "steps_ratio", scale=1.0, fmt="{:.2f}"), floors + " |"]))
     return lines
 
 
@@ -252,6 +304,10 @@ def main() -> int:
     ap.add_argument("--aspects", default="2,0.5", help="aspect ratios of collapse_2d (2 and/or 0.5)")
     ap.add_argument("--silo", choices=sorted(SILOS), default=SILO_DEFAULT,
                     help="silo_2d's silo: " + "; ".join(f"{k}: {v['label']}" for k, v in SILOS.items()))
+    ap.add_argument("--hybrid-vars", action="append", type=hybrid_vars_option, default=[],
+                    help="deck variables of the 2D hybrid twins, NAME=VALUE,... (e.g. hfill=0.1): a variant of "
+                         "the coupling, reported apart from the fix's defaults; repeat for several variants "
+                         "(an empty value: the defaults), all against the same DEM runs")
     ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "adaptive_accuracy.md")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of the JSON that this run does not measure again (each row has its "
@@ -281,9 +337,10 @@ def main() -> int:
     rows = []
     with tempfile.TemporaryDirectory(prefix="adaptive_accuracy_") as tmp:
         work = Path(tmp)
-        jobs = [(f"collapse_2d a = {a:g}", lambda a=a: collapse_2d(work, args.np_, a, width[a], pairs, seeds))
+        variants = args.hybrid_vars or [{}]
+        jobs = [(f"collapse_2d a = {a:g}", lambda a=a: collapse_2d(work, args.np_, a, width[a], pairs, seeds, variants))
                 for a in aspects if "collapse_2d" in scenes]
-        jobs += [(name, job) for name, job in (("silo_2d", lambda: silo_2d(work, args.np_, args.quick, pairs, seeds, args.silo)),
+        jobs += [(name, job) for name, job in (("silo_2d", lambda: silo_2d(work, args.np_, args.quick, pairs, seeds, args.silo, variants)),
                                                ("collapse_3d", lambda: collapse_3d(work, args.np_)),
                                                ("silo_3d", lambda: silo_3d(work, args.np_))) if name in scenes]
         for name, job in jobs:    # a scene that fails is reported; the others' figures are kept
@@ -303,14 +360,35 @@ def silo_of(r: dict) -> str | None:
     return r.get("silo", SILO_BEFORE) if r["scene"] == "silo_2d" else None
 
 
+def hybrid_vars_option(text: str) -> dict:
+    """--hybrid-vars: 'NAME=VALUE,...' as a dict of deck variables (numbers where they read as one)."""
+    out = {}
+    for item in filter(None, text.split(",")):
+        name, sep, value = item.partition("=")
+        if not sep or not name.startswith("h") or not value:
+            raise argparse.ArgumentTypeError(f"--hybrid-vars takes NAME=VALUE items of the hybrid twin's deck "
+                                             f"variables (h...), not '{item}'")
+        try:
+            out[name] = int(value) if value.lstrip("-").isdigit() else float(value)
+        except ValueError:
+            out[name] = value
+    return out
+
+
+def variant_label(r: dict) -> str:
+    """' (hfill 0.1, ...)' for a row of a variant, '' for the fix's defaults."""
+    v = r.get("hybrid_vars") or {}
+    return f" ({', '.join(f'{k} {v[k]:g}' if isinstance(v[k], (int, float)) else f'{k} {v[k]}' for k in sorted(v))})" if v else ""
+
+
 def scene_name(r: dict) -> str:
-    return r["scene"] if silo_of(r) is None else f"{r['scene']} {silo_of(r)}"
+    return (r["scene"] if silo_of(r) is None else f"{r['scene']} {silo_of(r)}") + variant_label(r)
 
 
 def row_key(r: dict) -> tuple:
     """What a row measures: its scene (a failed one: the whole scene) and silo, aspect, packing and numerics."""
     return (r["scene"], silo_of(r), r.get("aspect"), r.get("seed", REFERENCE_SEED), r.get("exchange_every"),
-            r.get("oracle_every"))
+            r.get("oracle_every"), variant_label(r))
 
 
 def merge(kept: list[dict], rows: list[dict]) -> list[dict]:
@@ -323,7 +401,8 @@ def command(args) -> str:
     return (f"bench/adaptive_accuracy.py{' --quick' if args.quick else ''} --np {args.np_} --scenes {args.scenes}"
             f"{'' if args.quick else f' --exchanges {args.exchanges} --oracles {args.oracles}'}"
             f" --seeds {args.seeds}{f' --aspects {args.aspects}' if 'collapse_2d' in args.scenes else ''}"
-            f"{f' --silo {args.silo}' if 'silo_2d' in args.scenes and not args.quick else ''}")
+            f"{f' --silo {args.silo}' if 'silo_2d' in args.scenes and not args.quick else ''}"
+            + "".join(f" --hybrid-vars '{','.join(f'{k}={v}' for k, v in variant.items())}'" for variant in args.hybrid_vars))
 
 
 SCENE_ORDER = ("collapse_2d", "silo_2d", "collapse_3d", "silo_3d")
@@ -343,7 +422,10 @@ def write(args, rows: list[dict]) -> None:
              "packing; the noise floor is the DEM from another packing against it (same measure). The hybrid "
              "runs with the fix's defaults of its row's date (adaptive zones; the grain update pic 0 before "
              "2026-11-29, pic regime with its share per exchange on 2026-11-29, at the agreement's rate since "
-             "2026-12-01) and the decks' material; rows with a packing come from each packing's own DEM. The 2D silos: "
+             "2026-12-01) and the decks' material, a variant's rows (deck variables in parentheses after the scene) with "
+             "those set; rows with a packing come from each packing's own DEM. The silos' compaction: their "
+             "material below 40 d over the DEM's, 0.2-0.8 s after the opening (in parentheses the other packing's "
+             "DEM's). The 2D silos: "
              + "; ".join(f"{k}, {v['label']}" for k, v in SILOS.items()) + ".", ""]
     lines += table([r for r in rows if "failed" not in r])
     lines += mean_table([r for r in rows if "failed" not in r])

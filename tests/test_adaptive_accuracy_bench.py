@@ -81,3 +81,32 @@ def test_the_deep_silo_stands_beside_the_shallow_one_it_does_not_replace():
     assert set(means) == {f"silo_2d {bench.SILO_DEFAULT}", f"silo_2d {bench.SILO_BEFORE}"}
     assert means["silo_2d deep"].split("|")[8].strip() == "-3.0 %"
     assert means["silo_2d shallow"].split("|")[8].strip() == "+4.0 %"
+
+
+def test_a_variant_of_the_coupling_stands_beside_the_defaults_it_does_not_replace():
+    ref = bench.REFERENCE_SEED
+    defaults = [silo(ref, -0.03, "deep"), silo(2, -0.05, "deep")]
+    variant = {"hfill": 0.1}
+    filled = [dict(silo(ref, -0.01, "deep", "new"), hybrid_vars=variant),
+              dict(silo(2, +0.03, "deep", "new"), hybrid_vars=variant)]
+    merged = bench.merge(defaults, filled)
+    assert merged == defaults + filled
+    # a rerun of the variant replaces its own rows only; another value of it is another variant
+    again = [dict(silo(ref, 0.0, "deep", "newer"), hybrid_vars=variant)]
+    assert bench.merge(merged, again) == defaults + filled[1:] + again
+    other = [dict(silo(ref, 0.0, "deep", "newer"), hybrid_vars={"hfill": 0.3})]
+    assert bench.merge(merged, other) == merged + other
+    means = {line.split("|")[1].strip(): line for line in bench.mean_table(merged) if line.startswith("| silo_2d")}
+    assert set(means) == {"silo_2d deep", "silo_2d deep (hfill 0.1)"}
+    assert means["silo_2d deep"].split("|")[8].strip() == "-4.0 %"
+    assert means["silo_2d deep (hfill 0.1)"].split("|")[8].strip() == "+1.0 %"
+    assert bench.variant_name(variant) == "_hfill0.1" and bench.variant_name({}) == ""
+
+
+def test_hybrid_vars_are_deck_variables_of_the_hybrid_twin():
+    assert bench.hybrid_vars_option("hfill=0.1,hsupport=0,hpic=regime") == {"hfill": 0.1, "hsupport": 0,
+                                                                           "hpic": "regime"}
+    assert bench.hybrid_vars_option("") == {}
+    for bad in ("fill=0.1", "hfill", "hfill="):
+        with pytest.raises(Exception, match="NAME=VALUE"):
+            bench.hybrid_vars_option(bad)
