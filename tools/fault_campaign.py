@@ -469,7 +469,7 @@ HOSTILE_EXPECT = {
     "hello_truncated": r"refused the handshake: version mismatch: .*a 100-byte Hello",
     "hello_empty": r"refused the handshake: version mismatch: .*a 0-byte Hello",
     "hello_oversized": r"refused the handshake: version mismatch: .*a 1049240-byte Hello",
-    "hello_wrong_tag": r"mpm_solver: error: protocol error: received an unknown message \(tag 4242, 680 bytes\)",
+    "hello_wrong_tag": r"mpm_solver: error: protocol error: received an unknown message \(tag 4242, 688 bytes\)",
     "hello_step_first": r"mpm_solver: error: protocol error: received StepHeader \(tag 7310, 56 bytes\) from the DEM host "
                         r"while waiting for the handshake",
     "hello_units_lj": r"refused the handshake: .*units 'lj', mpm_solver needs units si",

@@ -50,7 +50,7 @@ class ContinuumSettings(C.Structure):
                 ("container_lo", C.c_double * 3), ("container_hi", C.c_double * 3), ("touched_faces", C.c_uint32),
                 ("pad1", C.c_int32), ("cfl", C.c_double), ("grain_weight", C.c_double), ("pic", C.c_double),
                 ("agreement_time", C.c_double), ("support_gain", C.c_double), ("fill_share", C.c_double),
-                ("packing_fraction", C.c_double), ("points_per_axis", C.c_int32),
+                ("fill_modulus", C.c_double), ("packing_fraction", C.c_double), ("points_per_axis", C.c_int32),
                 ("output_every", C.c_int32), ("output_path", C.c_char * TEXT)]
 
 
@@ -99,7 +99,7 @@ class AbortNote(C.Structure):
     _fields_ = [("reason", C.c_char * TEXT)]
 
 
-for _t, _n in ((ContinuumSettings, 488), (Hello, 680), (HelloReply, 300), (StepHeader, 56), (StepAck, 520),
+for _t, _n in ((ContinuumSettings, 496), (Hello, 688), (HelloReply, 300), (StepHeader, 56), (StepAck, 520),
                (NodeRecord, 40), (CellGrains, 32), (StateRequest, 4104), (Finish, 16), (AbortNote, 256)):
     assert C.sizeof(_t) == _n, f"{_t.__name__} is {C.sizeof(_t)} bytes, the wire layout says {_n}"
 

@@ -484,6 +484,7 @@ std::string apply_deck_material(FixOptions &options, DeckContact deck) {
     return "Fix hybrid/mpm: material " + m.path + " was calibrated for another contact law (" + mismatch +
            "); measure the continuum's constants for this one (docs/design.md section 4.6)";
   apply_material(m, deck.kn, options.continuum.grain_diameter, options.continuum);
+  if (options.fill_auto) options.continuum.fill_modulus = compaction_modulus(m, deck.kn, options.continuum.grain_diameter);
   return "";
 }
 
@@ -493,7 +494,8 @@ std::string material_line(const FixOptions &options) {
   return "fix hybrid/mpm: material " + m.name + " (" + m.path + "): Young's modulus " + general(c.youngs_modulus, 6) +
          " Pa, Poisson's ratio " + general(c.poisson_ratio, 3) + ", friction angle " + general(c.friction_angle_deg, 4) +
          " deg, mu_s " + general(c.mu_s, 4) + ", mu_2 " + general(c.mu_2, 4) + ", I0 " + general(c.I0, 4) +
-         ", critical packing " + general(c.critical_packing, 4);
+         ", critical packing " + general(c.critical_packing, 4) +
+         (options.fill_auto ? ", fill pressure modulus " + general(c.fill_modulus, 4) + " Pa" : "");
 }
 
 MPI_Comm start_dem_job(int *argc, char ***argv, const char *program, const std::string &host) {

@@ -387,10 +387,14 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
       c.support_gain = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; },
                               "keyword 'support' (gain of the support force between exchanges) must be in [0, 1], "
                               "not ");
-    else if (key == "fill")
-      c.fill_share = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; },
-                            "keyword 'fill' (the fill pressure's modulus as a share of the continuum's bulk "
-                            "modulus; 0 = none) must be in [0, 1], not ");
+    else if (key == "fill") {
+      o.fill_auto = val == "auto";
+      c.fill_share = o.fill_auto ? 0.0
+                                 : within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; },
+                                          "keyword 'fill' (auto: the fill pressure's modulus from the calibration, "
+                                          "or a share of the continuum's bulk modulus; 0 = none) must be auto or in "
+                                          "[0, 1], not ");
+    }
     else if (key == "points_per_cell") {
       c.points_per_axis = integer(key, val);
       o.points_given = true;
@@ -431,6 +435,9 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
       illegal("unknown keyword '" + key + "' (known keywords: " + kKeywords + ")");
     iarg += used;
   }
+  if (o.fill_auto && !o.material)
+    illegal("keyword 'fill auto' needs 'material': the fill pressure's modulus comes from the calibration's packing "
+            "and pressure (or give a share of the bulk modulus, fill S)");
   if (o.material && !constants_given.empty())
     illegal("keyword '" + constants_given.front() + "' conflicts with 'material', which sets the continuum's "
             "constants from the calibration; leave one out");
@@ -457,13 +464,13 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
   // flow regime there does both (docs/design.md section 5.3).
   if (o.adaptive() && !o.pic_given) c.pic = kPicRegime;
   // The fill pressure stiffens the points it acts on by up to fill x K < fill x M (M the P-wave
-  // modulus the stable step is set by): their wave speed grows by under sqrt(1 + fill)
+  // modulus the stable step is set by): their wave speed grows by under sqrt(1 + fill).
   if (c.cfl * std::sqrt(1.0 + c.fill_share) > 1.0)
     illegal("keywords 'cfl' " + shortest(c.cfl) + " and 'fill' " + shortest(c.fill_share) +
             ": the fill pressure raises the continuum's wave speed by up to sqrt(1 + fill), so cfl must be at most " +
             shortest(1.0 / std::sqrt(1.0 + c.fill_share)) + " with it; lower cfl or fill");
-  // the fill a node of points and grains may hold (the fill pressure's reference), the packing the
-  // grid's cell is chosen for
+  // The fill a node of points and grains may hold (the fill pressure's reference): the packing the
+  // grid's cell is chosen for.
   c.packing_fraction = grid_packing(o, dimension);
   if (o.grain_type > ntypes)
     illegal("keyword 'grain_type' " + std::to_string(o.grain_type) + " is not an atom type (1 to " +

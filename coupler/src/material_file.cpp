@@ -110,6 +110,8 @@ CalibratedMaterial read_material_file(const std::string& path) {
   m.I0 = r.number("continuum", "I0", 1e-6, 100);
   m.friction_angle = r.number("continuum", "friction_angle", 0.01, 89.99);
   if (!(m.mu_2 > m.mu_s)) r.fail("[continuum] mu_2", "must exceed mu_s");
+  if (!(m.packing_fraction > m.critical_packing))
+    r.fail("[continuum] packing_fraction", "must exceed critical_packing (the packing at rest is denser than in flow)");
   return m;
 }
 
@@ -145,6 +147,11 @@ void apply_material(const CalibratedMaterial& m, double kn, double diameter, Con
   c.mu_2 = m.mu_2;
   c.I0 = m.I0;
   c.critical_packing = m.critical_packing;
+}
+
+double compaction_modulus(const CalibratedMaterial& m, double kn, double diameter) {
+  const double p0 = kn / (m.stiffness_number * (m.dimension == 3 ? diameter : 1.0));
+  return p0 * m.packing_fraction / (m.packing_fraction - m.critical_packing);
 }
 
 }  // namespace coupler

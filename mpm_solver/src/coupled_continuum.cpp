@@ -6,10 +6,10 @@
 #include <map>
 #include <sstream>
 
+#include "coupler/fill_pressure.hpp"
 #include "coupler/flow_regime.hpp"
 #include "coupler/oracle.hpp"
 #include "coupler/stencil.hpp"
-#include "coupler/fill_pressure.hpp"
 #include "coupler/support_force.hpp"
 #include "coupler/tuning.hpp"
 #include "coupler/zones.hpp"
@@ -87,9 +87,15 @@ CoupledContinuum<D>::CoupledContinuum(const coupler::Hello& hello)
   dem_momentum_.assign(grid.num_nodes(), Vec<D>::Zero());
   support_.assign(grid.num_nodes(), coupler::SupportNode<D>{});
   touched_slot_.assign(grid.num_nodes(), -1);
-  // The fill pressure's stiffness, at most fill x K < fill x M (M = lambda + 2G, the P-wave
-  // modulus of the stable step), is not in the stable step: the fix keeps cfl sqrt(1 + fill) <= 1.
-  fill_modulus_ = hello.continuum.fill_share * solver_.materials().front().template bulk_modulus<D>();
+  const MaterialModel& material = solver_.materials().front();
+  fill_modulus_ = hello.continuum.fill_share * material.template bulk_modulus<D>() + hello.continuum.fill_modulus;
+  // The fill pressure's stiffness is not in the stable step: it raises the points' wave speed by
+  // up to sqrt(1 + K_fill / M), M = lambda + 2G the P-wave modulus of the stable step.
+  const double p_wave = material.lame_lambda + 2.0 * material.shear_modulus;
+  if (hello.continuum.cfl * std::sqrt(1.0 + fill_modulus_ / p_wave) > 1.0)
+    throw UserError("the fill pressure's modulus " + std::to_string(fill_modulus_) + " Pa stiffens the continuum (P-wave "
+                    "modulus " + std::to_string(p_wave) + " Pa) past what cfl " + std::to_string(hello.continuum.cfl) +
+                    " keeps stable: lower the fix's cfl or fill");
   full_node_mass_ = hello.continuum.packing_fraction * hello.continuum.grain_density * std::pow(grid.dx, D);
   fill_pressure_.assign(grid.num_nodes(), 0.0);
   const std::string dir = coupler::get_text(hello.continuum.output_path);

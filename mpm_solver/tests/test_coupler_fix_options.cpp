@@ -87,8 +87,13 @@ TEST(FixOptions, KeywordsSetTheirValues) {
 
 TEST(FixOptions, FillPressureNeedsAShareOfTheModulusAndAStableStep) {
   EXPECT_EQ(error_of("cell 0.01 fill 1.5"),
-            "keyword 'fill' (the fill pressure's modulus as a share of the continuum's bulk modulus; 0 = none) must be "
-            "in [0, 1], not 1.5");
+            "keyword 'fill' (auto: the fill pressure's modulus from the calibration, or a share of the continuum's bulk "
+            "modulus; 0 = none) must be auto or in [0, 1], not 1.5");
+  EXPECT_EQ(error_of("cell 0.01 fill auto").rfind("keyword 'fill auto' needs 'material'", 0), 0u);
+  const auto o = parse("cell 0.01 fill 0.2 fill auto material disks_2d");
+  EXPECT_TRUE(o.fill_auto);
+  EXPECT_EQ(o.continuum.fill_share, 0.0);    // the last fill keyword is the one
+  EXPECT_DOUBLE_EQ(o.continuum.packing_fraction, o.material->packing_fraction);
   EXPECT_EQ(error_of("cell 0.01 fill -0.1").rfind("keyword 'fill' ", 0), 0u);
   EXPECT_EQ(error_of("cell 0.01 fill 1 cfl 0.7"), "(no error)");
   EXPECT_EQ(error_of("cell 0.01 fill 1 cfl 0.8"),

@@ -74,7 +74,20 @@ TEST(coupler_material, ErrorsNameTheKey) {
   EXPECT_NE(error_of(replaced(kValid, "I0 = 0.3", "I0 = \"x\"")).find("[continuum] I0 must be a number"),
             std::string::npos);
   EXPECT_NE(error_of(replaced(kValid, "mu_2 = 0.55", "mu_2 = 0.2")).find("mu_2 must exceed mu_s"), std::string::npos);
+  EXPECT_NE(error_of(replaced(kValid, "critical_packing = 0.79", "critical_packing = 0.83"))
+                .find("packing_fraction must exceed critical_packing"),
+            std::string::npos);
   EXPECT_NE(error_of("[material\n").find("material file"), std::string::npos);
+}
+
+// The fill pressure's modulus from the calibration (fix keyword `fill auto`): the calibration
+// compressed the grains to p0 = kn / kappa (2D; kn / (kappa d) in 3D), densifying them from the
+// critical packing 0.79 to 0.82, so p0 per relative densification (0.82 - 0.79) / 0.82.
+TEST(coupler_material, CompactionModulusIsTheCalibrationsPressureOverItsDensification) {
+  auto m = coupler::read_material_file(write("material_ok.toml", kValid));
+  EXPECT_NEAR(coupler::compaction_modulus(m, 4e5, 0.002), 400.0 * 0.82 / 0.03, 1e-9);
+  m.dimension = 3;
+  EXPECT_NEAR(coupler::compaction_modulus(m, 4e5, 0.002), 400.0 / 0.002 * 0.82 / 0.03, 1e-6);
 }
 
 TEST(coupler_material, RestitutionOfAHookeanPair) {

@@ -47,6 +47,7 @@ struct FixOptions {
   std::optional<CalibratedMaterial> material;    ///< keyword material (none: constants from the line)
   bool diameter_given = false, density_given = false;    ///< mu(I) grain size and density given
   bool pic_given = false;
+  bool fill_auto = false;         ///< keyword `fill auto`: the fill pressure's modulus from the calibration
   bool points_given = false;      ///< keyword points_per_cell given
   bool container_given[6] = {false, false, false, false, false, false};    ///< xlo xhi ylo yhi zlo zhi
   double container_value[6] = {0, 0, 0, 0, 0, 0};

@@ -55,4 +55,10 @@ std::string contact_mismatch(const CalibratedMaterial& m, const DeckContact& dec
 /// critical packing.
 void apply_material(const CalibratedMaterial& m, double kn, double diameter, ContinuumSettings& settings);
 
+/// The packing's compaction modulus from the calibration (the fill pressure's, `fill auto`;
+/// docs/design.md section 5.4): the pressure p0 the grains were compressed to (kn / kappa in 2D,
+/// kn / (kappa d) in 3D, kappa the stiffness number) over the relative densification from the
+/// critical packing it took, p0 phi / (phi - phi_c), Pa.
+double compaction_modulus(const CalibratedMaterial& m, double kn, double diameter);
+
 }  // namespace coupler

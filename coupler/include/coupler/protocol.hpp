@@ -119,10 +119,12 @@ struct ContinuumSettings {
   /// Gain of the support force between exchanges (0 = none): each exchange adds
   /// support_gain * lambda / interval to the force the sides exert on each other at a node.
   double support_gain = 1.0;
-  /// The fill pressure's modulus as a share of the continuum's bulk modulus (0 = none): a node
-  /// whose points and coupled grains hold more than the packing's mass pushes its points apart
-  /// (docs/design.md section 5.4).
+  /// The fill pressure's modulus (0 = none): fill_share times the continuum's bulk modulus plus
+  /// fill_modulus (Pa; the fix's `fill auto`: the calibrated packing's, coupler::compaction_modulus).
+  /// A node whose points and coupled grains hold more than the packing's mass pushes its points
+  /// apart (docs/design.md section 5.4).
   double fill_share = 0.0;
+  double fill_modulus = 0.0;
   /// The grains' packing fraction at rest (the calibration's; 0 = not known): the fill a node
   /// of points and grains may hold, as packing_fraction * grain_density * cell volume.
   double packing_fraction = 0.0;

@@ -22,7 +22,7 @@ static_assert(kProtocolVersion == 12, "the layouts below are those of protocol 1
 #define COUPLER_WIRE_FIELD(T, f, offset, size) \
   static_assert(offsetof(T, f) == (offset) && sizeof(T::f) == (size), #T "::" #f " moved: the wire layout changed")
 
-COUPLER_WIRE_SIZE(ContinuumSettings, 488);
+COUPLER_WIRE_SIZE(ContinuumSettings, 496);
 COUPLER_WIRE_FIELD(ContinuumSettings, youngs_modulus, 0, 8);
 COUPLER_WIRE_FIELD(ContinuumSettings, poisson_ratio, 8, 8);
 COUPLER_WIRE_FIELD(ContinuumSettings, friction_angle_deg, 16, 8);
@@ -46,12 +46,13 @@ COUPLER_WIRE_FIELD(ContinuumSettings, pic, 184, 8);
 COUPLER_WIRE_FIELD(ContinuumSettings, agreement_time, 192, 8);
 COUPLER_WIRE_FIELD(ContinuumSettings, support_gain, 200, 8);
 COUPLER_WIRE_FIELD(ContinuumSettings, fill_share, 208, 8);
-COUPLER_WIRE_FIELD(ContinuumSettings, packing_fraction, 216, 8);
-COUPLER_WIRE_FIELD(ContinuumSettings, points_per_axis, 224, 4);
-COUPLER_WIRE_FIELD(ContinuumSettings, output_every, 228, 4);
-COUPLER_WIRE_FIELD(ContinuumSettings, output_path, 232, 256);
+COUPLER_WIRE_FIELD(ContinuumSettings, fill_modulus, 216, 8);
+COUPLER_WIRE_FIELD(ContinuumSettings, packing_fraction, 224, 8);
+COUPLER_WIRE_FIELD(ContinuumSettings, points_per_axis, 232, 4);
+COUPLER_WIRE_FIELD(ContinuumSettings, output_every, 236, 4);
+COUPLER_WIRE_FIELD(ContinuumSettings, output_path, 240, 256);
 
-COUPLER_WIRE_SIZE(Hello, 680);
+COUPLER_WIRE_SIZE(Hello, 688);
 COUPLER_WIRE_FIELD(Hello, protocol, 0, 4);
 COUPLER_WIRE_FIELD(Hello, release, 4, 32);
 COUPLER_WIRE_FIELD(Hello, host, 36, 32);
@@ -69,7 +70,7 @@ COUPLER_WIRE_FIELD(Hello, box_lo, 128, 24);
 COUPLER_WIRE_FIELD(Hello, box_hi, 152, 24);
 COUPLER_WIRE_FIELD(Hello, step, 176, 8);
 COUPLER_WIRE_FIELD(Hello, time, 184, 8);
-COUPLER_WIRE_FIELD(Hello, continuum, 192, 488);
+COUPLER_WIRE_FIELD(Hello, continuum, 192, 496);
 
 COUPLER_WIRE_SIZE(HelloReply, 300);
 COUPLER_WIRE_FIELD(HelloReply, protocol, 0, 4);
