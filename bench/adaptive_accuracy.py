@@ -281,7 +281,7 @@ def mean_table(rows: list[dict]) -> list[str]:
         return fmt.format(scale * float(np.mean(v))) if v else ""
 
     for (scene, aspect, every, oracle), g in groups.items():
-        floors = ", ".join(pct(r["noise_floor_runout"] if scene == "collapse_2d" else r["noise_floor"]) for r in g)
+        floors = ", ".join(pct(r["noise_floor_runout"] if r["scene"] == "collapse_2d" else r["noise_floor"]) for r in g)
         lines.append(" | ".join([
             f"| {scene}", "" if aspect is None else f"{aspect:g}", ", ".join(str(r["seed"]) for r in g), str(every),
             str(oracle), mean(g, "runout_error"), mean(g, "surface_error", fmt="{:.1f} %"), mean(g, "rate_error"),

@@ -110,3 +110,15 @@ def test_hybrid_vars_are_deck_variables_of_the_hybrid_twin():
     for bad in ("fill=0.1", "hfill", "hfill="):
         with pytest.raises(Exception, match="NAME=VALUE"):
             bench.hybrid_vars_option(bad)
+
+
+def test_a_collapse_variants_noise_floor_is_the_runouts_as_the_defaults_is():
+    ref = bench.REFERENCE_SEED
+    rows = [collapse(seed=ref, floor=0.005), collapse(seed=2, floor=-0.005)]
+    rows += [dict(r, hybrid_vars={"hfill": "auto"}) for r in rows]
+    for r in rows:
+        r["noise_floor"] = 0.013    # the surface's floor, which the means must not show as the runout's
+    lines = [line for line in bench.mean_table(rows) if line.startswith("| collapse_2d")]
+    assert len(lines) == 2 and "(hfill auto)" in lines[1]
+    for line in lines:
+        assert line.rstrip(" |").endswith("+0.5 %, -0.5 %"), line
