@@ -51,11 +51,11 @@ from column_collapse import combine_surfaces, points_surface, surface_error  # n
 from dem_collapse import run as run_collapse, run_from_settled  # noqa: E402
 from dem_silo import run_dem_silo  # noqa: E402
 from hgtools.discharge import rate_ratio_se  # noqa: E402
-from hgtools.logs import ledger_closure, number as log_number, thermo_rows  # noqa: E402
+from hgtools.logs import ledger_closure, thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 from mpm_results import load_run  # noqa: E402
 from scale_speed import silo_size  # noqa: E402
-from silo_flow_field import dem_states, hybrid_states  # noqa: E402
+from silo_flow_field import dem_states, dem_timestep, hybrid_states, mass_below  # noqa: E402
 
 D = 0.002
 REFERENCE_SEED = 12345                          # the packing of the decks and the tests
@@ -138,33 +138,28 @@ SILOS = {
 SILO_DEFAULT, SILO_BEFORE = "deep", "shallow"    # rows without a `silo` key are SILO_BEFORE's
 
 
-# The silo's compaction: its material (grains' carried mass and points) below COMPACTION_HEIGHT over the
+# The silo's compaction: its material (grains' carried mass and points) below COMPACTION_HEIGHT_D over the
 # DEM's at the same time, averaged over COMPACTION_WINDOW after the opening, from the DEM's grain dumps and
 # the hybrid's MPM frames every COMPACTION_EVERY s. The band's cells holding more than the packing's mass
 # (points over grains) show as an excess that grows as the silo discharges (docs/design.md 5.3-5.4).
-COMPACTION_HEIGHT, COMPACTION_WINDOW, COMPACTION_EVERY = 40 * D, (0.2, 0.8), 0.05
-
-
-def mass_below(states, height: float = COMPACTION_HEIGHT) -> tuple[np.ndarray, np.ndarray]:
-    """Times and the mass below `height` (above the floor) of states (silo_flow_field's)."""
-    t = np.array([st["t"] for st in states])
-    m = np.array([st["m"][(st["y"] > 0) & (st["y"] < height)].sum() for st in states])
-    return t, m
+COMPACTION_HEIGHT_D, COMPACTION_WINDOW, COMPACTION_EVERY = 40, (0.2, 0.8), 0.05
 
 
 def compaction(states, reference) -> float:
-    """The mean over COMPACTION_WINDOW of states' mass below COMPACTION_HEIGHT over reference's (at the
+    """The mean over COMPACTION_WINDOW of states' mass below COMPACTION_HEIGHT_D over reference's (at the
     same time, interpolated), less 1."""
-    t, m = mass_below(states)
-    t_ref, m_ref = mass_below(reference)
+    def below(st):
+        b = mass_below(st, (COMPACTION_HEIGHT_D,))
+        return np.array(b["t"]), np.array([m[0] for m in b["mass"]])
+    t, m = below(states)
+    t_ref, m_ref = below(reference)
     inside = (t >= COMPACTION_WINDOW[0] - 1e-9) & (t <= COMPACTION_WINDOW[1] + 1e-9)
     return float(np.mean(m[inside] / np.interp(t[inside], t_ref, m_ref)) - 1) if inside.any() else float("nan")
 
 
-def frame_every(dem_log: Path, every: int) -> int:
+def frame_every(dem_out: Path, every: int) -> int:
     """Exchanges between the hybrid's MPM frames for one every COMPACTION_EVERY s, at the DEM's step."""
-    dt = log_number(r"^DEM timestep: .*, dt = (\S+) s", dem_log.read_text())
-    return max(1, round(COMPACTION_EVERY / (dt * every)))
+    return max(1, round(COMPACTION_EVERY / (dem_timestep(dem_out) * every)))
 
 
 def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DEFAULT, variants=({},)) -> list[dict]:
@@ -185,7 +180,7 @@ def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DE
     for variant, seed, every, oracle in ((v, s, e, o) for v in variants for s in seeds for e, o in pairs):
         (ref, ref_out, ref_states), (other, _, other_states) = dem(seed), dem(floor_seed(seed))
         name = f"silo_{silo}_s{seed}_e{every}_o{oracle}{variant_name(variant)}"
-        frames = {"houtev": frame_every(ref_out / "log.lammps", every), "hout": work / name / "frames"}
+        frames = {"houtev": frame_every(ref_out, every), "hout": work / name / "frames"}
         hyb = run_dem_silo(out=work / name, seed=seed,
                            hybrid_vars={"hevery": every, "hadapt": oracle, **hybrid, **variant, **frames}, **common)
         hyb_states, _ = hybrid_states(work / name)

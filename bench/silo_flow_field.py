@@ -49,10 +49,15 @@ FRAME_EXCHANGES = 150         # exchanges between the hybrid's frames (about 0.0
 FILL_ROW, FILL_TOP = 5 * D, 40 * D    # the fill map's rows, and its top (the orifice's discrete region and above)
 
 
+def dem_timestep(out: Path) -> float:
+    """The DEM time step of the silo deck's run in `out` (its 'DEM timestep' line), s."""
+    return float(re.search(r"^DEM timestep: .*, dt = (\S+) s", (out / "log.lammps").read_text(), re.M).group(1))
+
+
 def dem_states(out: Path) -> list[dict]:
     """Each grain dump of a run: t since the opening and the grains' y, x, vy and mass."""
     log = (out / "log.lammps").read_text()
-    dt = float(re.search(r"^DEM timestep: .*, dt = (\S+) s", log, re.M).group(1))
+    dt = dem_timestep(out)
     opened = int(re.search(r"^DEM silo open: .*, step (\d+),", log, re.M).group(1))
     states = []
     for f in out.glob("flow.*.dump"):
@@ -82,9 +87,10 @@ def in_window(states, t0: float, t1: float) -> list[dict]:
     return [s for s in states if t0 <= s["t"] <= t1]
 
 
-def mass_below(states) -> dict:
+def mass_below(states, heights_d=HEIGHTS_D) -> dict:
+    """Each state's time and its mass above the floor and below each height (in grain diameters)."""
     return dict(t=[s["t"] for s in states],
-                mass=[[float(s["m"][(s["y"] > 0) & (s["y"] < h * D)].sum()) for h in HEIGHTS_D] for s in states])
+                mass=[[float(s["m"][(s["y"] > 0) & (s["y"] < h * D)].sum()) for h in heights_d] for s in states])
 
 
 def profiles(states, width: float) -> dict:

@@ -122,3 +122,16 @@ def test_a_collapse_variants_noise_floor_is_the_runouts_as_the_defaults_is():
     assert len(lines) == 2 and "(hfill auto)" in lines[1]
     for line in lines:
         assert line.rstrip(" |").endswith("+0.5 %, -0.5 %"), line
+
+
+def test_compaction_is_the_material_low_in_the_silo_over_the_dems_in_the_window():
+    import numpy as np
+
+    def state(t, low_mass):    # one body at 10 d, one at 100 d (above the measured height), one below the floor
+        return dict(t=t, y=np.array([10 * bench.D, 100 * bench.D, -bench.D]), m=np.array([low_mass, 5.0, 7.0]))
+    dem = [state(t, 1.0) for t in (0.0, 0.25, 0.5, 0.75, 1.0)]
+    hyb = [state(t, 1.1 if 0.2 <= t <= 0.8 else 3.0) for t in (0.1, 0.3, 0.6, 0.9)]    # outside the window: ignored
+    assert bench.compaction(hyb, dem) == pytest.approx(0.1)
+    assert bench.compaction(dem, dem) == pytest.approx(0.0)
+    assert np.isnan(bench.compaction([state(0.95, 1.0)], dem))
+    assert np.isnan(bench.compaction([], dem))

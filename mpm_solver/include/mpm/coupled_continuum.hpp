@@ -141,8 +141,8 @@ class CoupledContinuum {
   double interval_ = 0;               ///< time since the previous exchange, s
   std::vector<coupler::SupportNode<D>> support_;  ///< each node's support force until the next exchange
   std::vector<std::size_t> support_nodes_;  ///< nodes where a support force is set
-  /// The fill pressure (docs/design.md section 5.4): its modulus (a share of the bulk modulus, 0 =
-  /// none), the mass of a node at the packing, and the last agreement's pressure per node.
+  /// The fill pressure (docs/design.md section 5.4): its modulus (Pa, 0 = none), the mass of a node
+  /// at the packing, and the last agreement's pressure per node.
   double fill_modulus_ = 0, full_node_mass_ = 0;
   std::vector<double> fill_pressure_;
   std::vector<std::size_t> fill_nodes_;     ///< nodes where fill_pressure_ is set
