@@ -76,6 +76,14 @@ def closure(log: Path) -> float:
     return ledger_closure(thermo_rows(log, require="f_couple[29]"))
 
 
+def overlap(log: Path) -> float | None:
+    """The run's mean overlap of points and grains where they meet (the fix's f_couple[34]: the shared
+    nodes' mass above a packed node's over their mass) over its thermo rows with points; None from a
+    fix without the entry."""
+    values = [r["f_couple[34]"] for r in thermo_rows(log, require="f_couple[34]") if r.get("f_couple[3]", 1) > 0]
+    return float(np.mean(values)) if values else None
+
+
 def floor_seed(seed: int) -> int:
     """The packing whose DEM is `seed`'s noise floor."""
     return OTHER_SEED if seed == REFERENCE_SEED else REFERENCE_SEED
@@ -117,6 +125,7 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds,
             rate_error=None, steps_ratio=hyb.steps / ref.steps, hybrid_at_rest=hyb.at_rest,
             noise_floor=floor["surface"], noise_floor_runout=floor["runout"], noise_floor_ke=floor["ke"],
             noise_floor_steps_ratio=floor["steps"], ledger_closure=closure(work / name / "log.lammps"),
+            overlap=overlap(work / name / "log.lammps"),
             dem_value=ref.runout, hybrid_value=hyb.runout, speedup=ref.wall_time / hyb.wall_time,
             **({"hybrid_vars": variant} if variant else {})))
         print(f"collapse a = {aspect:g}{variant_label(rows[-1])}, seed {seed}, every {every}, oracle {oracle}: "
@@ -192,6 +201,7 @@ def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DE
             noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
             dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time,
             compaction=compaction(hyb_states, ref_states), noise_floor_compaction=compaction(other_states, ref_states),
+            overlap=overlap(work / name / "log.lammps"),
             **({"hybrid_vars": variant} if variant else {})))
         print(f"silo ({'reduced' if quick else silo}){variant_label(rows[-1])}, seed {seed}, every {every}, "
               f"oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}, compaction {rows[-1]['compaction']:+.1%}", flush=True)
@@ -258,7 +268,10 @@ def table(rows: list[dict]) -> list[str]:
 
 
 def mean_table(rows: list[dict]) -> list[str]:
-    """Each 2D numerics pair's errors on the mean over the packings measured, where there are several."""
+    """Each 2D numerics pair's errors on the mean over the packings measured, where there are several,
+    with the mean's standard error over the packings and the DEM's own spread over them (the runout's or
+    the rate's standard deviation over the packings' DEM runs, relative to their mean): a hybrid mean
+    within that spread is as close to the DEM as another set of packings would be."""
     groups = {}
     for r in rows:
         if r["scene"] in ("collapse_2d", "silo_2d") and "seed" in r:
@@ -266,21 +279,33 @@ def mean_table(rows: list[dict]) -> list[str]:
     groups = {k: g for k, g in groups.items() if len({r["seed"] for r in g}) > 1}
     if not groups:
         return []
-    lines = ["", "Means over the packings (each packing's hybrid against its own DEM):", "",
+    lines = ["", "Means over the packings (each packing's hybrid against its own DEM; ± the mean's standard "
+                 "error over the packings; the DEM's spread: its runout's or rate's standard deviation over the "
+                 "packings over their mean; overlap: the fix's f_couple[34] over the run, shared nodes' mass "
+                 "above the packing's):", "",
              "| scene | a | packings | exchange every | oracle every | runout | surface / H0 | rate | compaction | "
-             "steps to rest / DEM's | noise floors |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "steps to rest / DEM's | overlap | DEM's spread | noise floors |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
 
-    def mean(g, key, scale=100.0, fmt="{:+.1f} %"):
-        v = [r[key] for r in g if r.get(key) is not None]
-        return fmt.format(scale * float(np.mean(v))) if v else ""
+    def values(g, key):
+        return [r[key] for r in g if r.get(key) is not None]
+
+    def mean(g, key, scale=100.0, fmt="{:+.1f} %", se=False):
+        v = values(g, key)
+        if not v:
+            return ""
+        text = fmt.format(scale * float(np.mean(v)))
+        return text + (f" ± {scale * float(np.std(v, ddof=1)) / np.sqrt(len(v)):.1f} %" if se and len(v) > 1 else "")
 
     for (scene, aspect, every, oracle), g in groups.items():
         floors = ", ".join(pct(r["noise_floor_runout"] if r["scene"] == "collapse_2d" else r["noise_floor"]) for r in g)
+        dem = np.array(values(g, "dem_value"))
+        spread = f"{100 * float(np.std(dem, ddof=1) / np.mean(dem)):.1f} %" if len(dem) > 1 else ""
         lines.append(" | ".join([
             f"| {scene}", "" if aspect is None else f"{aspect:g}", ", ".join(str(r["seed"]) for r in g), str(every),
-            str(oracle), mean(g, "runout_error"), mean(g, "surface_error", fmt="{:.1f} %"), mean(g, "rate_error"),
-            mean(g, "compaction"), mean(g, "steps_ratio", scale=1.0, fmt="{:.2f}"), floors + " |"]))
+            str(oracle), mean(g, "runout_error", se=True), mean(g, "surface_error", fmt="{:.1f} %"),
+            mean(g, "rate_error", se=True), mean(g, "compaction"), mean(g, "steps_ratio", scale=1.0, fmt="{:.2f}"),
+            mean(g, "overlap", fmt="{:.1f} %"), spread, floors + " |"]))
     return lines
 
 

@@ -45,12 +45,17 @@ def test_a_rerun_replaces_only_the_rows_it_measures_again():
 def test_means_over_packings_are_the_rows_means_and_need_two_packings():
     rows = [collapse(seed=bench.REFERENCE_SEED, every=1, runout=-0.06), collapse(seed=2, every=1, runout=-0.02),
             collapse(seed=3, every=1, runout=+0.02), collapse(seed=bench.REFERENCE_SEED, every=10, runout=0.04)]
+    for r, dem, overlap in zip(rows, (4.0, 4.2, 4.4, 4.0), (0.01, 0.02, 0.06, 0.0)):
+        r["dem_value"], r["overlap"] = dem, overlap
     lines = bench.mean_table(rows)
     body = [line for line in lines if line.startswith("| collapse_2d")]
     assert len(body) == 1, "every 10 has one packing: no mean"
     cells = [c.strip() for c in body[0].strip("|").split("|")]
     assert cells[2] == f"{bench.REFERENCE_SEED}, 2, 3"
-    assert cells[5] == "-2.0 %"
+    # the mean, its standard error over the packings (0.04 / sqrt 3), the DEM's spread (0.2 / 4.2)
+    assert cells[5] == "-2.0 % ± 2.3 %"
+    assert cells[10] == "3.0 %"
+    assert cells[11] == "4.8 %"
     assert bench.mean_table(rows[3:]) == []
 
 
@@ -79,8 +84,8 @@ def test_the_deep_silo_stands_beside_the_shallow_one_it_does_not_replace():
     assert bench.merge(merged, again) == shallow + deep[1:] + again
     means = {line.split("|")[1].strip(): line for line in bench.mean_table(merged) if line.startswith("| silo_2d")}
     assert set(means) == {f"silo_2d {bench.SILO_DEFAULT}", f"silo_2d {bench.SILO_BEFORE}"}
-    assert means["silo_2d deep"].split("|")[8].strip() == "-3.0 %"
-    assert means["silo_2d shallow"].split("|")[8].strip() == "+4.0 %"
+    assert means["silo_2d deep"].split("|")[8].strip() == "-3.0 % ± 1.0 %"
+    assert means["silo_2d shallow"].split("|")[8].strip() == "+4.0 % ± 1.0 %"
 
 
 def test_a_variant_of_the_coupling_stands_beside_the_defaults_it_does_not_replace():
@@ -98,8 +103,8 @@ def test_a_variant_of_the_coupling_stands_beside_the_defaults_it_does_not_replac
     assert bench.merge(merged, other) == merged + other
     means = {line.split("|")[1].strip(): line for line in bench.mean_table(merged) if line.startswith("| silo_2d")}
     assert set(means) == {"silo_2d deep", "silo_2d deep (hfill 0.1)"}
-    assert means["silo_2d deep"].split("|")[8].strip() == "-4.0 %"
-    assert means["silo_2d deep (hfill 0.1)"].split("|")[8].strip() == "+1.0 %"
+    assert means["silo_2d deep"].split("|")[8].strip() == "-4.0 % ± 1.0 %"
+    assert means["silo_2d deep (hfill 0.1)"].split("|")[8].strip() == "+1.0 % ± 2.0 %"
     assert bench.variant_name(variant) == "_hfill0.1" and bench.variant_name({}) == ""
 
 
@@ -135,3 +140,15 @@ def test_compaction_is_the_material_low_in_the_silo_over_the_dems_in_the_window(
     assert bench.compaction(dem, dem) == pytest.approx(0.0)
     assert np.isnan(bench.compaction([state(0.95, 1.0)], dem))
     assert np.isnan(bench.compaction([], dem))
+
+
+def test_the_overlap_is_the_fix_entrys_mean_while_there_are_points(tmp_path):
+    log = tmp_path / "log.lammps"
+    log.write_text("Step Time f_couple[3] f_couple[34]\n"
+                   "0 0 0 0\n10 0.001 40 0.02\n20 0.002 40 0.04\n"
+                   "Loop time of 1.0 on 2 procs for 20 steps with 100 atoms\n"
+                   "Step Time f_couple[3] f_couple[34]\n20 0.002 40 0.04\n30 0.003 0 0\n")
+    assert bench.overlap(log) == pytest.approx(0.03)
+    old = tmp_path / "old.lammps"    # a fix before the entry
+    old.write_text("Step Time f_couple[3]\n0 0 40\n")
+    assert bench.overlap(old) is None

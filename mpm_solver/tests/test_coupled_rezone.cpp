@@ -454,7 +454,15 @@ TEST(CoupledFill, AnOverfullNodePushesItsPointsApartWithMomentumExact) {
     const std::vector<coupler::NodeRecord> records = {{node_at(0.06, 0.06), 0.2 * full, {0, 0, 0}},
                                                       {node_at(0.03, 0.06), 0.2 * full, {0, 0, 0}}};
     continuum.advance_to(kInterval);
+    // the overlap the exchange reports, measured with or without the pressure: the centre node's
+    // points and grains hold 0.2 full above the packing, the edge node's nothing
+    const std::vector<double> node_mass = {continuum.solver().grid().mass[records[0].node],
+                                           continuum.solver().grid().mass[records[1].node]};
+    ASSERT_NEAR(node_mass[0], full, 1e-12 * full) << "the block's interior node holds a packed node's mass";
+    ASSERT_LT(node_mass[1] + 0.2 * full, full) << "the edge node stays below the packing";
     continuum.agree({records});
+    EXPECT_NEAR(continuum.grid_totals(1).overfill, (node_mass[0] + 0.2 * full - full) / (node_mass[0] + node_mass[1] + 0.4 * full),
+                1e-12) << "fill " << fill;
     continuum.complete_step();
     const auto& pts = continuum.solver().points();
     const Eigen::Vector2d centre(0.06, 0.06), edge(0.03, 0.06);

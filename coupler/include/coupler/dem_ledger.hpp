@@ -58,7 +58,9 @@ enum ThermoEntry {
   // where the coupling's wall time went (coupler/coupling_timer.hpp), the ranks' mean (s): all of
   // it, waiting for the MPM process, rezones (with the oracle), all runs; then the coupling's share
   // of this run's wall time so far (%)
-  kVecTimeCoupling, kVecTimeMpmWait, kVecTimeRezone, kVecTimeShare, kVecSize
+  kVecTimeCoupling, kVecTimeMpmWait, kVecTimeRezone, kVecTimeShare,
+  // the shared nodes' mass above the packing's over their mass (StepAck::overfill)
+  kVecOverfill, kVecSize
 };
 
 /// The vector from the last acknowledgement of the MPM process (the continuum's figures, as of

@@ -297,6 +297,10 @@ struct StepAck {
   double energy_physics = 0;         ///< the continuum's own steps: stress, walls, transfers, support reaction, fill
   double energy_agreement = 0;       ///< the velocity agreements on the continuum's nodes
   double energy_rezone = 0;          ///< points made, removed and corrected by rezones
+  /// The shared nodes' mass above the packing's (docs/design.md section 5.4) over their mass, at the
+  /// last exchange: how far points and grains overlap where they meet (0 when neither side holds
+  /// more than a packed node's mass together).
+  double overfill = 0;
 };
 
 /// DEM rank -> MPM: a coupled grain's weighted mass and momentum on one node.

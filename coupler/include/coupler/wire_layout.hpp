@@ -13,7 +13,7 @@
 
 namespace coupler::wire_layout {
 
-static_assert(kProtocolVersion == 12, "the layouts below are those of protocol 12: update them with the version");
+static_assert(kProtocolVersion == 13, "the layouts below are those of protocol 13: update them with the version");
 
 #define COUPLER_WIRE_SIZE(T, size)                                                                     \
   static_assert(std::is_standard_layout_v<T> && std::is_trivially_copyable_v<T>,                      \
@@ -100,7 +100,7 @@ COUPLER_WIRE_FIELD(StepHeader, next_time, 40, 8);
 COUPLER_WIRE_FIELD(StepHeader, zone_source, 48, 4);
 COUPLER_WIRE_FIELD(StepHeader, field_shares, 52, 4);
 
-COUPLER_WIRE_SIZE(StepAck, 520);
+COUPLER_WIRE_SIZE(StepAck, 528);
 COUPLER_WIRE_FIELD(StepAck, step, 0, 8);
 COUPLER_WIRE_FIELD(StepAck, status, 8, 4);
 COUPLER_WIRE_FIELD(StepAck, substeps, 12, 4);
@@ -124,6 +124,7 @@ COUPLER_WIRE_FIELD(StepAck, energy, 488, 8);
 COUPLER_WIRE_FIELD(StepAck, energy_physics, 496, 8);
 COUPLER_WIRE_FIELD(StepAck, energy_agreement, 504, 8);
 COUPLER_WIRE_FIELD(StepAck, energy_rezone, 512, 8);
+COUPLER_WIRE_FIELD(StepAck, overfill, 520, 8);
 
 COUPLER_WIRE_SIZE(NodeRecord, 40);
 COUPLER_WIRE_FIELD(NodeRecord, node, 0, 8);
