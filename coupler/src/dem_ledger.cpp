@@ -37,7 +37,7 @@ void thermo_vector(const StepAck &a, std::int64_t exchanges, std::int64_t couple
   out[kVecEnergyResidual] = out[kVecEnergy] - (sum[0] + continuum_start) - changes;
   // the timing entries are the host's (its wall clock)
   for (int k = kVecTimeCoupling; k <= kVecTimeShare; k++) out[k] = 0.0;
-  out[kVecOverfill] = a.overfill;
+  out[kVecOverlap] = a.overlap;
 }
 
 }    // namespace coupler

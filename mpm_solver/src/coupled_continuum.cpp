@@ -643,7 +643,7 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   // answer: the common velocity; dem_mass_ keeps m_dem for lambda / m_dem.
   mismatch_ = 0;
   shared_nodes_ = 0;
-  double shared_mass = 0, excess_mass = 0;  // the overlap of the two sides (StepAck::overfill)
+  double shared_mass = 0, excess_mass = 0;  // the overlap of the two sides (StepAck::overlap)
   // The agreement closes the gap between the sides' node velocities as a relaxation of time
   // agreement_time: by the share 1 - exp(-T / agreement_time) over an interval T (all of it
   // when agreement_time is 0, the reference method). Closing it whole at every exchange damps
@@ -705,7 +705,7 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   }
   ledger_.agreement += agreement_change;
   ledger_.energy = energy_before + agreement_change;
-  overfill_ = shared_mass > 0 ? excess_mass / shared_mass : 0.0;
+  overlap_ = shared_mass > 0 ? excess_mass / shared_mass : 0.0;
   // pic regime's shares act at the agreement's rate too: of its grains' deviations from the
   // node velocity, a node's field rule closes the share `closing` over the interval. Applied
   // whole at every exchange they erased the fluctuations once per exchange, so exchanging every
@@ -800,7 +800,7 @@ coupler::StepAck CoupledContinuum<D>::ack(std::int64_t step, double mass, const 
   a.points = static_cast<std::int64_t>(solver_.points().size());
   a.shared_nodes = shared_nodes_;
   a.mismatch = mismatch_;
-  a.overfill = overfill_;
+  a.overlap = overlap_;
   a.mpm_dt = pending_dt_ >= 0 ? pending_dt_ : 0.0;
   a.mass = mass;
   a.kinetic_energy = kinetic_energy;

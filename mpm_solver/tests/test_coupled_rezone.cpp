@@ -461,7 +461,7 @@ TEST(CoupledFill, AnOverfullNodePushesItsPointsApartWithMomentumExact) {
     ASSERT_NEAR(node_mass[0], full, 1e-12 * full) << "the block's interior node holds a packed node's mass";
     ASSERT_LT(node_mass[1] + 0.2 * full, full) << "the edge node stays below the packing";
     continuum.agree({records});
-    EXPECT_NEAR(continuum.grid_totals(1).overfill, (node_mass[0] + 0.2 * full - full) / (node_mass[0] + node_mass[1] + 0.4 * full),
+    EXPECT_NEAR(continuum.grid_totals(1).overlap, (node_mass[0] + 0.2 * full - full) / (node_mass[0] + node_mass[1] + 0.4 * full),
                 1e-12) << "fill " << fill;
     continuum.complete_step();
     const auto& pts = continuum.solver().points();

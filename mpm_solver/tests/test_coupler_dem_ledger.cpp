@@ -30,7 +30,7 @@ TEST(DemLedger, VectorAddsBothSidesAndItsResidualClosesTheLedger) {
   l.close_dem_bracket(9.0);
   l.add_agreement(-0.5);
   coupler::StepAck a;
-  a.points = 40, a.shared_nodes = 12, a.mismatch = 0.01, a.substeps = 3, a.mpm_dt = 1e-5, a.overfill = 0.0625;
+  a.points = 40, a.shared_nodes = 12, a.mismatch = 0.01, a.substeps = 3, a.mpm_dt = 1e-5, a.overlap = 0.0625;
   a.mass = 2.0, a.momentum[1] = -1.0, a.angular[2] = 0.25, a.kinetic_energy = 0.125;
   a.zone_cells[coupler::kContinuum] = 5, a.zone_cells[coupler::kHybrid] = 6, a.zone_cells[coupler::kDiscrete] = 7;
   const double continuum_start = 4.0;
@@ -59,10 +59,10 @@ TEST(DemLedger, VectorAddsBothSidesAndItsResidualClosesTheLedger) {
   // keep their numbers; they are the host's wall clock, left at zero here; the overlap comes last
   EXPECT_EQ(coupler::kVecEnergyResidual, 28);
   EXPECT_EQ(coupler::kVecTimeCoupling, 29);
-  EXPECT_EQ(coupler::kVecOverfill, 33);
+  EXPECT_EQ(coupler::kVecOverlap, 33);
   EXPECT_EQ(coupler::kVecSize, 34);
   for (int k = coupler::kVecTimeCoupling; k <= coupler::kVecTimeShare; k++) EXPECT_EQ(v[k], 0.0) << k;
-  EXPECT_DOUBLE_EQ(v[coupler::kVecOverfill], 0.0625);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecOverlap], 0.0625);
 }
 
 }    // namespace

@@ -59,8 +59,8 @@ enum ThermoEntry {
   // it, waiting for the MPM process, rezones (with the oracle), all runs; then the coupling's share
   // of this run's wall time so far (%)
   kVecTimeCoupling, kVecTimeMpmWait, kVecTimeRezone, kVecTimeShare,
-  // the shared nodes' mass above the packing's over their mass (StepAck::overfill)
-  kVecOverfill, kVecSize
+  // the shared nodes' mass above the packing's over their mass (StepAck::overlap)
+  kVecOverlap, kVecSize
 };
 
 /// The vector from the last acknowledgement of the MPM process (the continuum's figures, as of

@@ -300,7 +300,7 @@ struct StepAck {
   /// The shared nodes' mass above the packing's (docs/design.md section 5.4) over their mass, at the
   /// last exchange: how far points and grains overlap where they meet (0 when neither side holds
   /// more than a packed node's mass together).
-  double overfill = 0;
+  double overlap = 0;
 };
 
 /// DEM rank -> MPM: a coupled grain's weighted mass and momentum on one node.

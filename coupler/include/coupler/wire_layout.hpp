@@ -124,7 +124,7 @@ COUPLER_WIRE_FIELD(StepAck, energy, 488, 8);
 COUPLER_WIRE_FIELD(StepAck, energy_physics, 496, 8);
 COUPLER_WIRE_FIELD(StepAck, energy_agreement, 504, 8);
 COUPLER_WIRE_FIELD(StepAck, energy_rezone, 512, 8);
-COUPLER_WIRE_FIELD(StepAck, overfill, 520, 8);
+COUPLER_WIRE_FIELD(StepAck, overlap, 520, 8);
 
 COUPLER_WIRE_SIZE(NodeRecord, 40);
 COUPLER_WIRE_FIELD(NodeRecord, node, 0, 8);

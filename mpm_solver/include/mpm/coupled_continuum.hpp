@@ -130,7 +130,7 @@ class CoupledContinuum {
   double open_time_ = 0;              ///< the time advance_to stopped at
   int substeps_ = 0;
   double mismatch_ = 0;
-  double overfill_ = 0;               ///< StepAck::overfill of the last exchange
+  double overlap_ = 0;               ///< StepAck::overlap of the last exchange
   std::int64_t shared_nodes_ = 0;
   std::vector<double> dem_mass_;      ///< scratch: DEM node mass, touched nodes only
   std::vector<Vec<D>> dem_momentum_;
