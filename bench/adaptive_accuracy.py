@@ -84,6 +84,17 @@ def overlap(log: Path) -> float | None:
     return float(np.mean(values)) if values else None
 
 
+def fill_work(log: Path) -> float | None:
+    """The fill pressure's work over the run (the fix's f_couple[35], a part of the continuum's own
+    steps) over the energy the run released (the ledger's total, f_couple[19], first row less last):
+    how much of what the flow spent the pressure gave back. None from a fix without the entry or a run
+    that released nothing."""
+    rows = thermo_rows(log, require="f_couple[35]")
+    if not rows or not rows[0]["f_couple[19]"] - rows[-1]["f_couple[19]"] > 0:
+        return None
+    return rows[-1]["f_couple[35]"] / (rows[0]["f_couple[19]"] - rows[-1]["f_couple[19]"])
+
+
 def floor_seed(seed: int) -> int:
     """The packing whose DEM is `seed`'s noise floor."""
     return OTHER_SEED if seed == REFERENCE_SEED else REFERENCE_SEED
@@ -125,7 +136,7 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds,
             rate_error=None, steps_ratio=hyb.steps / ref.steps, hybrid_at_rest=hyb.at_rest,
             noise_floor=floor["surface"], noise_floor_runout=floor["runout"], noise_floor_ke=floor["ke"],
             noise_floor_steps_ratio=floor["steps"], ledger_closure=closure(work / name / "log.lammps"),
-            overlap=overlap(work / name / "log.lammps"),
+            overlap=overlap(work / name / "log.lammps"), fill_work=fill_work(work / name / "log.lammps"),
             dem_value=ref.runout, hybrid_value=hyb.runout, speedup=ref.wall_time / hyb.wall_time,
             **({"hybrid_vars": variant} if variant else {})))
         print(f"collapse a = {aspect:g}{variant_label(rows[-1])}, seed {seed}, every {every}, oracle {oracle}: "
@@ -201,7 +212,7 @@ def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DE
             noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
             dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time,
             compaction=compaction(hyb_states, ref_states), noise_floor_compaction=compaction(other_states, ref_states),
-            overlap=overlap(work / name / "log.lammps"),
+            overlap=overlap(work / name / "log.lammps"), fill_work=fill_work(work / name / "log.lammps"),
             **({"hybrid_vars": variant} if variant else {})))
         print(f"silo ({'reduced' if quick else silo}){variant_label(rows[-1])}, seed {seed}, every {every}, "
               f"oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}, compaction {rows[-1]['compaction']:+.1%}", flush=True)
@@ -282,10 +293,10 @@ def mean_table(rows: list[dict]) -> list[str]:
     lines = ["", "Means over the packings (each packing's hybrid against its own DEM; ± the mean's standard "
                  "error over the packings; the DEM's spread: its runout's or rate's standard deviation over the "
                  "packings over their mean; overlap: the fix's f_couple[34] over the run, shared nodes' mass "
-                 "above the packing's):", "",
+                 "above the packing's; fill work: the fill pressure's, f_couple[35], over the energy the run released):", "",
              "| scene | a | packings | exchange every | oracle every | runout | surface / H0 | rate | compaction | "
-             "steps to rest / DEM's | overlap | DEM's spread | noise floors |",
-             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+             "steps to rest / DEM's | overlap | fill work | DEM's spread | noise floors |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
 
     def values(g, key):
         return [r[key] for r in g if r.get(key) is not None]
@@ -305,7 +316,7 @@ def mean_table(rows: list[dict]) -> list[str]:
             f"| {scene}", "" if aspect is None else f"{aspect:g}", ", ".join(str(r["seed"]) for r in g), str(every),
             str(oracle), mean(g, "runout_error", se=True), mean(g, "surface_error", fmt="{:.1f} %"),
             mean(g, "rate_error", se=True), mean(g, "compaction"), mean(g, "steps_ratio", scale=1.0, fmt="{:.2f}"),
-            mean(g, "overlap", fmt="{:.1f} %"), spread, floors + " |"]))
+            mean(g, "overlap", fmt="{:.1f} %"), mean(g, "fill_work", fmt="{:.1f} %"), spread, floors + " |"]))
     return lines
 
 

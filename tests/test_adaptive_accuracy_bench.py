@@ -45,8 +45,8 @@ def test_a_rerun_replaces_only_the_rows_it_measures_again():
 def test_means_over_packings_are_the_rows_means_and_need_two_packings():
     rows = [collapse(seed=bench.REFERENCE_SEED, every=1, runout=-0.06), collapse(seed=2, every=1, runout=-0.02),
             collapse(seed=3, every=1, runout=+0.02), collapse(seed=bench.REFERENCE_SEED, every=10, runout=0.04)]
-    for r, dem, overlap in zip(rows, (4.0, 4.2, 4.4, 4.0), (0.01, 0.02, 0.06, 0.0)):
-        r["dem_value"], r["overlap"] = dem, overlap
+    for r, dem, overlap, fill in zip(rows, (4.0, 4.2, 4.4, 4.0), (0.01, 0.02, 0.06, 0.0), (0.1, 0.2, None, 0.0)):
+        r["dem_value"], r["overlap"], r["fill_work"] = dem, overlap, fill
     lines = bench.mean_table(rows)
     body = [line for line in lines if line.startswith("| collapse_2d")]
     assert len(body) == 1, "every 10 has one packing: no mean"
@@ -55,7 +55,8 @@ def test_means_over_packings_are_the_rows_means_and_need_two_packings():
     # the mean, its standard error over the packings (0.04 / sqrt 3), the DEM's spread (0.2 / 4.2)
     assert cells[5] == "-2.0 % ± 2.3 %"
     assert cells[10] == "3.0 %"
-    assert cells[11] == "4.8 %"
+    assert cells[11] == "15.0 %", "the fill work's mean over the rows that have it"
+    assert cells[12] == "4.8 %"
     assert bench.mean_table(rows[3:]) == []
 
 
@@ -152,3 +153,18 @@ def test_the_overlap_is_the_fix_entrys_mean_while_there_are_points(tmp_path):
     old = tmp_path / "old.lammps"    # a fix before the entry
     old.write_text("Step Time f_couple[3]\n0 0 40\n")
     assert bench.overlap(old) is None
+
+
+def test_the_fill_work_is_the_fix_entrys_last_over_the_energy_released(tmp_path):
+    log = tmp_path / "log.lammps"
+    log.write_text("Step Time f_couple[19] f_couple[35]\n"
+                   "0 0 10.0 0\n10 0.001 9.0 0.25\n"
+                   "Loop time of 1.0 on 2 procs for 10 steps with 100 atoms\n"
+                   "Step Time f_couple[19] f_couple[35]\n10 0.001 9.0 0.25\n20 0.002 6.0 0.5\n")
+    assert bench.fill_work(log) == pytest.approx(0.5 / 4.0)
+    gained = tmp_path / "gained.lammps"    # a run that released nothing has no share
+    gained.write_text("Step Time f_couple[19] f_couple[35]\n0 0 1.0 0\n10 0.001 1.0 0.1\n")
+    assert bench.fill_work(gained) is None
+    old = tmp_path / "old.lammps"
+    old.write_text("Step Time f_couple[19]\n0 0 1.0\n")
+    assert bench.fill_work(old) is None

@@ -76,7 +76,7 @@ class StepHeader(C.Structure):
 
 class StepAck(C.Structure):   # only the leading fields are read; the size is checked
     _fields_ = [("step", C.c_int64), ("status", C.c_int32), ("substeps", C.c_int32), ("message", C.c_char * TEXT),
-                ("rest", C.c_char * (528 - 272))]
+                ("rest", C.c_char * (536 - 272))]
 
 
 class NodeRecord(C.Structure):
@@ -99,7 +99,7 @@ class AbortNote(C.Structure):
     _fields_ = [("reason", C.c_char * TEXT)]
 
 
-for _t, _n in ((ContinuumSettings, 496), (Hello, 688), (HelloReply, 300), (StepHeader, 56), (StepAck, 528),
+for _t, _n in ((ContinuumSettings, 496), (Hello, 688), (HelloReply, 300), (StepHeader, 56), (StepAck, 536),
                (NodeRecord, 40), (CellGrains, 32), (StateRequest, 4104), (Finish, 16), (AbortNote, 256)):
     assert C.sizeof(_t) == _n, f"{_t.__name__} is {C.sizeof(_t)} bytes, the wire layout says {_n}"
 

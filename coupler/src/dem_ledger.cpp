@@ -38,6 +38,7 @@ void thermo_vector(const StepAck &a, std::int64_t exchanges, std::int64_t couple
   // the timing entries are the host's (its wall clock)
   for (int k = kVecTimeCoupling; k <= kVecTimeShare; k++) out[k] = 0.0;
   out[kVecOverlap] = a.overlap;
+  out[kVecEnergyFill] = a.energy_fill;
 }
 
 }    // namespace coupler

@@ -94,7 +94,7 @@ class FixHybridMPMLiggghts : public Fix {
   double polydispersity, continuum_start;
   std::unique_ptr<coupler::CouplingClock> clock;    // the coupling's clock (coupler/dem_coupling.hpp)
   double fewest_steps_warned;     // steps per contact at the last warning
-  double vector_cache[34];
+  double vector_cache[35];
 
   void connect();
   void state_request(int kind, const std::string &path);    // save or load the MPM state

@@ -815,6 +815,7 @@ coupler::StepAck CoupledContinuum<D>::ack(std::int64_t step, double mass, const 
   a.energy_physics = ledger_.physics;
   a.energy_agreement = ledger_.agreement;
   a.energy_rezone = ledger_.rezone;
+  a.energy_fill = solver_.fill_work() - ledger_.fill_start;
   a.before[0] = before_.mass;
   for (int d = 0; d < 3; ++d) a.before[1 + d] = before_.momentum[d], a.before[4 + d] = before_.angular[d];
   if constexpr (D == 2) a.angular[2] = angular[0];
@@ -951,6 +952,7 @@ void CoupledContinuum<D>::load(const std::string& path) {
   pending_dt_ = -1;
   ledger_ = EnergyLedger{};  // the ledger starts again with the continued run
   ledger_.energy = point_energy();
+  ledger_.fill_start = solver_.fill_work();
 }
 
 template <int D>

@@ -442,9 +442,9 @@ void Solver<D>::g2p(double dt) {
   const std::size_t none = std::numeric_limits<std::size_t>::max();
   const bool memory = transfer_memory_ > 0;
   std::size_t first_bad = none;
-  double max_speed_sq = 0, max_wave4 = 0;
+  double max_speed_sq = 0, max_wave4 = 0, fill_work = 0;
 #pragma omp parallel for schedule(static) num_threads(active_threads()) reduction(max : max_speed_sq, max_wave4) \
-    reduction(min : first_bad)
+    reduction(min : first_bad) reduction(+ : fill_work)
   for (std::size_t p = 0; p < n_points; ++p) {
     const coupler::QuadraticStencil<D> st(grid_.to_cell_units(points_.x[p]));
     Vec<D> v = Vec<D>::Zero(), transferred = Vec<D>::Zero();
@@ -462,6 +462,8 @@ void Solver<D>::g2p(double dt) {
     points_.v[p] = memory ? Vec<D>(v + transfer_memory_ * (points_.v[p] - transferred)) : v;
     points_.C[p] = C;
     points_.x[p] += dt * v;
+    // the fill pressure's power over the step, with the volume it acted on in P2G
+    fill_work += dt * points_.fill_pressure[p] * points_.volume(p) * C.trace();
     const Mat<D> f = Mat<D>::Identity() + dt * C;
     points_.J[p] *= f.determinant();
     const MaterialModel& model = materials_[points_.material[p]];
@@ -477,6 +479,7 @@ void Solver<D>::g2p(double dt) {
     if (!ok) first_bad = std::min(first_bad, p);
   }
   max_speed_ = std::sqrt(max_speed_sq);
+  fill_work_ += fill_work;
   if (n_points > 0) max_wave_speed_ = std::sqrt(std::sqrt(max_wave4));
   if (first_bad != none) {
     const auto& x = points_.x[first_bad];

@@ -31,6 +31,7 @@ TEST(DemLedger, VectorAddsBothSidesAndItsResidualClosesTheLedger) {
   l.add_agreement(-0.5);
   coupler::StepAck a;
   a.points = 40, a.shared_nodes = 12, a.mismatch = 0.01, a.substeps = 3, a.mpm_dt = 1e-5, a.overlap = 0.0625;
+  a.energy_fill = 0.375;  // a part of energy_physics, not a term of the sum
   a.mass = 2.0, a.momentum[1] = -1.0, a.angular[2] = 0.25, a.kinetic_energy = 0.125;
   a.zone_cells[coupler::kContinuum] = 5, a.zone_cells[coupler::kHybrid] = 6, a.zone_cells[coupler::kDiscrete] = 7;
   const double continuum_start = 4.0;
@@ -55,14 +56,17 @@ TEST(DemLedger, VectorAddsBothSidesAndItsResidualClosesTheLedger) {
   a.energy += 0.125;
   coupler::thermo_vector(a, 9, 33, totals, sums, continuum_start, v);
   EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyResidual], 0.125);
-  // f_ID[1..34] in docs/fix_hybrid_mpm.md: the timing entries come after the ledger's, which
-  // keep their numbers; they are the host's wall clock, left at zero here; the overlap comes last
+  // f_ID[1..35] in docs/fix_hybrid_mpm.md: the timing entries come after the ledger's, which
+  // keep their numbers; they are the host's wall clock, left at zero here; then the overlap and
+  // the fill pressure's work
   EXPECT_EQ(coupler::kVecEnergyResidual, 28);
   EXPECT_EQ(coupler::kVecTimeCoupling, 29);
   EXPECT_EQ(coupler::kVecOverlap, 33);
-  EXPECT_EQ(coupler::kVecSize, 34);
+  EXPECT_EQ(coupler::kVecEnergyFill, 34);
+  EXPECT_EQ(coupler::kVecSize, 35);
   for (int k = coupler::kVecTimeCoupling; k <= coupler::kVecTimeShare; k++) EXPECT_EQ(v[k], 0.0) << k;
   EXPECT_DOUBLE_EQ(v[coupler::kVecOverlap], 0.0625);
+  EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyFill], 0.375);
 }
 
 }    // namespace

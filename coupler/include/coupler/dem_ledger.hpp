@@ -1,6 +1,6 @@
 #pragma once
 // The DEM side's figures for thermo output: the grains' side of the energy ledger
-// (docs/fix_hybrid_mpm.md, "Energy ledger") and the fix's global vector (entries 1-33, "Restart,
+// (docs/fix_hybrid_mpm.md, "Energy ledger") and the fix's global vector (entries 1-35, "Restart,
 // fix_modify, output"). Host-neutral: the host sums its ranks' figures and prints the vector.
 
 #include <cstdint>
@@ -60,7 +60,9 @@ enum ThermoEntry {
   // of this run's wall time so far (%)
   kVecTimeCoupling, kVecTimeMpmWait, kVecTimeRezone, kVecTimeShare,
   // the shared nodes' mass above the packing's over their mass (StepAck::overlap)
-  kVecOverlap, kVecSize
+  kVecOverlap,
+  // of kVecEnergyContinuumSteps, the fill pressure's work (StepAck::energy_fill; not a term of the sum)
+  kVecEnergyFill, kVecSize
 };
 
 /// The vector from the last acknowledgement of the MPM process (the continuum's figures, as of

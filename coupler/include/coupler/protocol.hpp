@@ -301,6 +301,9 @@ struct StepAck {
   /// last exchange: how far points and grains overlap where they meet (0 when neither side holds
   /// more than a packed node's mass together).
   double overlap = 0;
+  /// Of energy_physics, the fill pressure's work on the points (Solver::fill_work; its last
+  /// substep's share comes with the next message).
+  double energy_fill = 0;
 };
 
 /// DEM rank -> MPM: a coupled grain's weighted mass and momentum on one node.

@@ -13,7 +13,7 @@
 
 namespace coupler::wire_layout {
 
-static_assert(kProtocolVersion == 13, "the layouts below are those of protocol 13: update them with the version");
+static_assert(kProtocolVersion == 14, "the layouts below are those of protocol 14: update them with the version");
 
 #define COUPLER_WIRE_SIZE(T, size)                                                                     \
   static_assert(std::is_standard_layout_v<T> && std::is_trivially_copyable_v<T>,                      \
@@ -100,7 +100,7 @@ COUPLER_WIRE_FIELD(StepHeader, next_time, 40, 8);
 COUPLER_WIRE_FIELD(StepHeader, zone_source, 48, 4);
 COUPLER_WIRE_FIELD(StepHeader, field_shares, 52, 4);
 
-COUPLER_WIRE_SIZE(StepAck, 528);
+COUPLER_WIRE_SIZE(StepAck, 536);
 COUPLER_WIRE_FIELD(StepAck, step, 0, 8);
 COUPLER_WIRE_FIELD(StepAck, status, 8, 4);
 COUPLER_WIRE_FIELD(StepAck, substeps, 12, 4);
@@ -125,6 +125,7 @@ COUPLER_WIRE_FIELD(StepAck, energy_physics, 496, 8);
 COUPLER_WIRE_FIELD(StepAck, energy_agreement, 504, 8);
 COUPLER_WIRE_FIELD(StepAck, energy_rezone, 512, 8);
 COUPLER_WIRE_FIELD(StepAck, overlap, 520, 8);
+COUPLER_WIRE_FIELD(StepAck, energy_fill, 528, 8);
 
 COUPLER_WIRE_SIZE(NodeRecord, 40);
 COUPLER_WIRE_FIELD(NodeRecord, node, 0, 8);

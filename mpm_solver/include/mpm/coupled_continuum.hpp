@@ -109,6 +109,7 @@ class CoupledContinuum {
   struct EnergyLedger {
     double energy = 0;      ///< kinetic + potential at the end of the last bracket
     double physics = 0, agreement = 0, rezone = 0;
+    double fill_start = 0;  ///< Solver::fill_work when the ledger started
   };
   EnergyLedger ledger_;
   double rezone_start_energy_ = 0;    ///< the points' energy when the rezone began

@@ -93,6 +93,10 @@ class Solver {
   /// Mass and number of the points the outlets have removed so far.
   double outflow_mass() const { return outflow_mass_; }
   long outflow_points() const { return outflow_points_; }
+  /// The work the points' fill pressure (Particles::fill_pressure, a coupled run's) has done on
+  /// them so far, J (J/m in 2D): sum over G2Ps of p tr(grad v) V dt, positive where it spreads
+  /// them. Part of what a coupled run's ledger counts as the continuum's own steps.
+  double fill_work() const { return fill_work_; }
 
  private:
   void seed_block(const Block& block);
@@ -120,6 +124,7 @@ class Solver {
   std::vector<RigidBoundary<D>> boundaries_;
   double max_wave_speed_ = 0;
   double max_speed_ = 0;
+  double fill_work_ = 0;
   double time_ = 0;
   long steps_ = 0;
   double outflow_mass_ = 0;
