@@ -1,5 +1,9 @@
 #include "coupler/dem_ledger.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
 namespace coupler {
 
 void thermo_vector(const StepAck &a, std::int64_t exchanges, std::int64_t coupled_grains,
@@ -39,6 +43,35 @@ void thermo_vector(const StepAck &a, std::int64_t exchanges, std::int64_t couple
   for (int k = kVecTimeCoupling; k <= kVecTimeShare; k++) out[k] = 0.0;
   out[kVecOverlap] = a.overlap;
   out[kVecEnergyFill] = a.energy_fill;
+}
+
+std::string EnergyGuard::check(const double vec[kVecSize], double time) {
+  largest_mass_ = std::max(largest_mass_, vec[kVecMass]);
+  largest_energy_ = std::max(largest_energy_, std::abs(vec[kVecEnergy]));
+  // what everything but the host's own steps changed since the start
+  double made = 0.0;
+  for (int k = 0; k < kTerms; k++) made += vec[kVecEnergyContinuumSteps + k];
+  if (made < lowest_) {
+    lowest_ = made, lowest_time_ = time;
+    std::copy(vec + kVecEnergyContinuumSteps, vec + kVecEnergyContinuumSteps + kTerms, lowest_terms_);
+    return "";
+  }
+  const double rise = made - lowest_, scale = this->scale();
+  if (!(limit_ > 0) || !(scale > 0) || rise <= limit_ * scale) return "";
+  double d[kTerms];
+  for (int k = 0; k < kTerms; k++) d[k] = vec[kVecEnergyContinuumSteps + k] - lowest_terms_[k];
+  char text[1024];
+  std::snprintf(text, sizeof text,
+                "the coupling made %.4g J (J/m in 2D) of energy between t = %.6g s and t = %.6g s, %.3g %% of the "
+                "scene's energy scale %.4g J (M |g| h, or the largest energy without gravity), above the limit "
+                "energy_guard %g. Since then (thermo entries 23-28): the continuum's own steps %+.4g, the agreements "
+                "%+.4g on the grains and %+.4g on the nodes, the support force's kicks %+.4g, the rezones %+.4g on "
+                "the grains and %+.4g on the points. Two representations of one material cannot make energy, so this "
+                "is an instability of the coupling: where the support force fed itself, try a smaller gain (support "
+                "0.5), exchanges more often (a smaller every) or no fill pressure (fill 0); where the rezones made it, "
+                "coarser cells or a wider band; energy_guard 0 lets the run go on",
+                rise, lowest_time_, time, 100.0 * rise / scale, scale, limit_, d[0], d[1], d[2], d[3], d[4], d[5]);
+  return text;
 }
 
 }    // namespace coupler

@@ -17,7 +17,7 @@ const char *const kKeywords =
     "grain_density, critical_packing, wall, container, touch, cfl, pic, support, fill, points_per_cell, inertia, output, "
     "mpm_state, every, timeout, idle, adaptive, depth, surface_depth, band, surface_packing, dilute, shear_rate, rest_hold, "
     "discrete, grain_type, "
-    "seed, steps_per_contact, material, relax, rezone_log";
+    "seed, steps_per_contact, material, relax, rezone_log, energy_guard";
 
 [[noreturn]] void illegal(const std::string &why) { throw OptionError(why); }
 
@@ -387,6 +387,10 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
       c.support_gain = within(key, val, [](double v) { return v >= 0.0 && v <= 1.0; },
                               "keyword 'support' (gain of the support force between exchanges) must be in [0, 1], "
                               "not ");
+    else if (key == "energy_guard")
+      o.energy_guard = within(key, val, [](double v) { return v >= 0.0; },
+                              "keyword 'energy_guard' (the energy the coupling may make, as a share of the scene's "
+                              "energy scale; 0 = unguarded) must be >= 0, not ");
     else if (key == "fill") {
       o.fill_auto = val == "auto";
       c.fill_share = o.fill_auto ? 0.0

@@ -5,6 +5,10 @@
 
 #include "coupler/dem_ledger.hpp"
 
+#include <initializer_list>
+#include <string>
+#include <vector>
+
 namespace {
 
 TEST(DemLedger, BracketsChargeEveryChangeOnce) {
@@ -67,6 +71,52 @@ TEST(DemLedger, VectorAddsBothSidesAndItsResidualClosesTheLedger) {
   for (int k = coupler::kVecTimeCoupling; k <= coupler::kVecTimeShare; k++) EXPECT_EQ(v[k], 0.0) << k;
   EXPECT_DOUBLE_EQ(v[coupler::kVecOverlap], 0.0625);
   EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyFill], 0.375);
+}
+
+/// A thermo vector with mass `mass` whose non-host ledger terms are `terms` (entries 23-28).
+std::vector<double> vector_with(double mass, std::initializer_list<double> terms, double energy = 40.0) {
+  std::vector<double> v(coupler::kVecSize, 0.0);
+  v[coupler::kVecMass] = mass;
+  v[coupler::kVecEnergy] = energy;
+  v[coupler::kVecEnergyDem] = -100.0;    // the host's own steps never count
+  int k = coupler::kVecEnergyContinuumSteps;
+  for (double t : terms) v[k++] = t;
+  return v;
+}
+
+TEST(EnergyGuard, StopsOnlyWhenTheCouplingMakesMoreThanItsShareOfMgh) {
+  // 2D silo: 40 kg/m under g = 9.81 in a box 0.25 m high, 5 %: 4.905 J/m allowed
+  const double g[3] = {0, -9.81, 0}, lo[3] = {0, 0, -0.5}, hi[3] = {0.1, 0.25, 0.5};
+  auto guard = coupler::EnergyGuard::over_box(0.05, g, lo, hi, 2);
+  EXPECT_EQ(guard.check(vector_with(40, {0, 0, 0, 0, 0, 0}).data(), 0.0), "");
+  EXPECT_NEAR(guard.scale(), 40 * 9.81 * 0.25, 1e-12);    // z of a 2D box does not count
+  // dissipation: the sum falls, whatever the host's steps do
+  EXPECT_EQ(guard.check(vector_with(39, {-3, -1, -0.5, 2, -28, 28.5}).data(), 0.1), "");    // sum -2
+  // a rise of 4.9 above the lowest sum (-2) is within 5 %, from the largest mass seen (40)
+  EXPECT_EQ(guard.check(vector_with(30, {-1, -1, -0.5, 4.9, -28, 28.5}).data(), 0.2), "");
+  // the rezones count: the continuum's steps and a rezone measure on the grid and on the points,
+  // so each alone shifts energy to the other (their sum is what the material holds)
+  EXPECT_EQ(guard.check(vector_with(30, {1.5, -1, -0.5, 4.9, -28, 26}).data(), 0.22), "");
+  const std::string made = guard.check(vector_with(30, {-1, -1, -0.5, 5.0, -28, 28.5}).data(), 0.25);
+  EXPECT_NE(made.find("the coupling made 5 J (J/m in 2D) of energy between t = 0.1 s and t = 0.25 s"),
+            std::string::npos) << made;
+  EXPECT_NE(made.find("the support force's kicks +3"), std::string::npos) << made;    // since the lowest
+  EXPECT_NE(made.find("the continuum's own steps +2"), std::string::npos) << made;
+  EXPECT_NE(made.find("energy_guard 0 lets the run go on"), std::string::npos) << made;
+  // unguarded, the same rise passes
+  auto off = coupler::EnergyGuard::over_box(0.0, g, lo, hi, 2);
+  off.check(vector_with(40, {0, 0, 0, 0, 0, 0}).data(), 0.0);
+  EXPECT_EQ(off.check(vector_with(30, {10, 0, 0, 10, 0, 0}).data(), 0.25), "");
+}
+
+TEST(EnergyGuard, WithoutGravityTheScaleIsTheLargestEnergySeen) {
+  const double g[3] = {0, 0, 0}, lo[3] = {0, 0, 0}, hi[3] = {1, 1, 1};
+  auto guard = coupler::EnergyGuard::over_box(0.1, g, lo, hi, 3);
+  EXPECT_EQ(guard.check(vector_with(1, {0, 0, 0, 0, 0, 0}, 2.0).data(), 0.0), "");
+  EXPECT_DOUBLE_EQ(guard.scale(), 2.0);
+  EXPECT_EQ(guard.check(vector_with(1, {-0.5, 0, 0, 0, 0, 0}, 1.5).data(), 1.0), "");
+  EXPECT_EQ(guard.check(vector_with(1, {-0.5, 0, 0, 0.2, 0, 0}, 1.7).data(), 2.0), "");    // 0.2 = 10 % of 2
+  EXPECT_NE(guard.check(vector_with(1, {-0.5, 0, 0, 0.25, 0, 0}, 1.75).data(), 3.0), "");
 }
 
 }    // namespace

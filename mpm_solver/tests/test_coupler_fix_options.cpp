@@ -181,6 +181,11 @@ TEST(FixOptions, BadLinesNameTheKeyword) {
   EXPECT_EQ(error_of("cell 0.01 material disks_2d friction 30"),
             "keyword 'friction' conflicts with 'material', which sets the continuum's constants from the "
             "calibration; leave one out");
+  EXPECT_EQ(error_of("cell 0.01 energy_guard -0.1"),
+            "keyword 'energy_guard' (the energy the coupling may make, as a share of the scene's energy scale; 0 = "
+            "unguarded) must be >= 0, not -0.1");
+  EXPECT_DOUBLE_EQ(parse("cell 0.01").energy_guard, coupler::kEnergyGuard);
+  EXPECT_DOUBLE_EQ(parse("cell 0.01 energy_guard 0").energy_guard, 0.0);
   EXPECT_EQ(error_of("cell 0.01 relax -1"), "keyword 'relax' (relaxation time of the velocity agreement, s; 0 = close "
                                             "the gap at every exchange) must be >= 0, not -1");
   EXPECT_EQ(error_of("cell 0.01 adaptive 10 touch floor"),

@@ -17,6 +17,7 @@
 #include "coupler/material_file.hpp"
 #include "coupler/protocol.hpp"
 #include "coupler/rezone_log.hpp"
+#include "coupler/tuning.hpp"
 
 namespace coupler {
 
@@ -53,6 +54,9 @@ struct FixOptions {
   double container_value[6] = {0, 0, 0, 0, 0, 0};
   double warn_steps_per_contact = kWarnStepsPerContact;    ///< keyword steps_per_contact
   double relax_time = -1.0;       ///< keyword relax, s (< 0: half the stiffest contact's duration)
+  /// keyword energy_guard: the energy the coupling may make, as a share of the scene's energy scale
+  /// (coupler::EnergyGuard; 0: unguarded)
+  double energy_guard = kEnergyGuard;
   RezoneLog rezone_log = RezoneLog::kSummary;
 
   bool adaptive() const { return adapt_every > 0; }
