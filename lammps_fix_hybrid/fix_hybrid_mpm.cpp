@@ -266,6 +266,8 @@ void FixHybridMPM::setup(int /*vflag*/)
     ledger->start = ledger->energy = grain_energy();
     continuum_start = last_ack->energy;
     ledger_started = true;
+    guard = std::make_unique<coupler::EnergyGuard>(coupler::EnergyGuard::over_box(
+        opt->energy_guard, opt->continuum.gravity, domain->boxlo, domain->boxhi, domain->dimension));
   }
   // a rezone left pending at the end of the last run is dropped (its stress is of a step
   // before the commands between the runs); the oracle runs again at its next step
@@ -375,15 +377,29 @@ double FixHybridMPM::compute_vector(int n)
 
 void FixHybridMPM::fill_thermo_vector()
 {
-  double totals[7], local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
+  double totals[7];
   grain_totals(totals);
-  ledger->sums(local);
-  MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
-  coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start,
-                         vector_cache);
+  ledger_vector(totals, vector_cache);
   // where the coupling's wall time went, the ranks' mean (coupler::ThermoEntry)
   run_log->thermo_times(world, vector_cache);
   vector_step = update->ntimestep;
+}
+
+/* ----------------------------------------------------------------------
+   the vector's counts and ledger from the grains' totals and the last
+   acknowledgement (collective); a run whose coupling made energy stops
+   here, at a thermo output or a rezone (keyword energy_guard)
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::ledger_vector(const double totals[7], double *out)
+{
+  double local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
+  ledger->sums(local);
+  MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
+  coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start, out);
+  if (!guard) return;    // before the ledger started
+  const std::string made = guard->check(out, dem_time());
+  if (!made.empty()) error->all(FLERR, "Fix hybrid/mpm: " + made);
 }
 
 /* ---------------------------------------------------------------------- */

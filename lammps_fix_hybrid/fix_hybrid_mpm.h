@@ -45,6 +45,7 @@ struct CellGrains;
 struct GrainRules;
 struct DemGrains;
 struct EnergyLedger;
+class EnergyGuard;
 struct OracleSettings;
 struct FixOptions;
 struct RezoneReport;
@@ -147,6 +148,7 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::EnergyLedger> ledger;
   bool ledger_started;
   double continuum_start;                 // the continuum's energy when the ledger started
+  std::unique_ptr<coupler::EnergyGuard> guard;    // stops a run whose coupling makes energy
   double grain_energy() const;            // kinetic (with rotation) + potential, this rank's grains
   void close_dem_bracket();               // LAMMPS's steps since the last bracket
 
@@ -184,6 +186,7 @@ class FixHybridMPM : public Fix {
   static bool in_any(const std::vector<Region *> &regions, double x, double y, double z);
   void grain_defaults();
   void fill_thermo_vector();
+  void ledger_vector(const double grain_totals[7], double *out);    // collective; checks the guard
   void grain_totals(double *all) const;
   [[noreturn]] void illegal(const std::string &why);
 };

@@ -299,5 +299,7 @@ void FixHybridMPM::rezone(int source)
   const std::string lines = run_log->rezone(report, source != coupler::kZonesOracle, opt->rezone_log, before, after);
   if (comm->me == 0 && !lines.empty()) utils::logmesg(lmp, lines);
   check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
+  double vector[coupler::kVecSize];
+  ledger_vector(grains_after, vector);    // the energy guard, at every rezone
   run_log->charge_rezone(start, counts.oracle_wait);
 }

@@ -17,7 +17,7 @@ import pytest
 
 from conftest import REPO
 from hgtools.logs import ledger, ledger_closure, thermo_rows, thermo_tables
-from test_coupled_physics import LAUNCH, env, run_deck
+from test_coupled_physics import LAUNCH, env, liggghts_headers, run_deck
 
 DECKS = {"2d": REPO / "input_decks" / "hybrid" / "adaptive_2d.lmp",
          "3d": REPO / "input_decks" / "hybrid" / "adaptive_3d.lmp"}
@@ -345,3 +345,52 @@ def test_discrete_region_that_touches_no_cell_is_refused(tmp_path, hybrid_progra
             "make the region span at least a third of a cell, or the cell smaller") in refused.stdout + refused.stderr
     ran = run(0.003)
     assert ran.returncode == 0, ran.stdout[-3000:] + ran.stderr[-3000:]
+
+
+GUARD_STOP = re.compile(r"the coupling made (\S+) J \(J/m in 2D\) of energy between t = (\S+) s and t = (\S+) s, "
+                        r"(\S+) % of the scene's energy scale (\S+) J")
+
+
+@pytest.mark.parametrize("host, deck", [("lammps", DECKS["2d"]),
+                                        ("liggghts", REPO / "input_decks" / "hybrid" / "adaptive_3d.liggghts")])
+def test_energy_guard_stops_a_run_whose_coupling_made_more_than_its_limit(tmp_path, hybrid_programs, host, deck):
+    """The energy guard (keyword energy_guard, coupler::EnergyGuard): the gravity-free patch run
+    unguarded shows how far the sum of ledger entries 23-28 (the continuum's steps, the agreements,
+    the support force, the rezones) rises above its lowest, over the largest energy seen (the scale without
+    gravity). With half that share as the limit the same run stops with the error that names the
+    energy made above the limit, and the MPM process stops with it; with three times it the run
+    goes through."""
+    def run(limit):
+        out = tmp_path / f"guard{limit:.6g}"
+        out.mkdir()
+        log = out / "log.txt"
+        proc = subprocess.run([sys.executable, str(LAUNCH), "--host", host, "-np", "1", str(deck), "-log", str(log),
+                               "-var", "nsteps", "100", "-var", "guard", f"{limit:.6g}"],
+                              capture_output=True, text=True, errors="replace", timeout=120, env=env(), cwd=out)
+        text = log.read_text(errors="replace") if log.exists() else ""
+        return proc, liggghts_headers(text, deck.read_text()) if host == "liggghts" else text
+
+    free, log = run(0)
+    assert free.returncode == 0, free.stdout + free.stderr
+    rows = thermo_tables(log)[-1]
+    made = [sum(r[f"f_couple[{k}]"] for k in range(23, 29)) for r in rows]
+    scale = max(abs(r["f_couple[19]"]) for r in rows)
+    rise = max(m - min(made[:i + 1]) for i, m in enumerate(made))
+    assert rise > 1e-6 * scale, (rise, scale)    # the patch's coupling does make some energy
+    share = rise / scale
+
+    stopped, _ = run(share / 2)
+    out = stopped.stdout + stopped.stderr
+    assert stopped.returncode != 0, out
+    m = GUARD_STOP.search(out)
+    assert m, out
+    reported, since, until, percent, reported_scale = (float(g) for g in m.groups())
+    assert reported > share / 2 * reported_scale, m.group(0)
+    assert percent == pytest.approx(100 * reported / reported_scale, rel=6e-3)    # printed to 3 digits
+    assert since < until
+    assert "energy_guard 0 lets the run go on" in out
+    assert "stopped the coupled run" in out, out    # the MPM process stopped with it
+
+    through, _ = run(3 * share)
+    assert through.returncode == 0, through.stdout + through.stderr
+

@@ -276,6 +276,8 @@ void FixHybridMPMLiggghts::setup(int /*vflag*/)
     ledger->start = ledger->energy = grain_energy();
     continuum_start = last_ack->energy;
     ledger_started = true;
+    guard = std::make_unique<coupler::EnergyGuard>(
+        coupler::EnergyGuard::over_box(opt->energy_guard, opt->continuum.gravity, domain->boxlo, domain->boxhi, 3));
   }
   // a rezone left pending at the end of the last run is dropped (its stress is of a step before
   // the commands between the runs); the oracle runs again at its next step
@@ -387,15 +389,26 @@ double FixHybridMPMLiggghts::compute_scalar()
 double FixHybridMPMLiggghts::compute_vector(int n)
 {
   if (vector_step != update->ntimestep) {
-    double totals[7], local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
+    double totals[7];
     grain_totals(totals);
-    ledger->sums(local);
-    MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
-    coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start, vector_cache);
+    ledger_vector(totals, vector_cache);
     run_log->thermo_times(world, vector_cache);    // where the coupling's wall time went
     vector_step = update->ntimestep;
   }
   return vector_cache[n];
+}
+
+// the vector's counts and ledger (collective); a run whose coupling made energy stops here, at a
+// thermo output or a rezone (keyword energy_guard)
+void FixHybridMPMLiggghts::ledger_vector(const double totals[7], double *out)
+{
+  double local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
+  ledger->sums(local);
+  MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
+  coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start, out);
+  if (!guard) return;    // before the ledger started
+  const std::string made = guard->check(out, dem_time(update->ntimestep));
+  if (!made.empty()) fail(made);
 }
 
 double FixHybridMPMLiggghts::memory_usage()

@@ -26,6 +26,7 @@ struct DemGrains;
 struct GrainArrays;
 struct GrainRules;
 struct EnergyLedger;
+class EnergyGuard;
 struct CouplingClock;
 class DemRunLog;
 struct RegionShape;
@@ -95,6 +96,8 @@ class FixHybridMPMLiggghts : public Fix {
   std::unique_ptr<coupler::CouplingClock> clock;    // the coupling's clock (coupler/dem_coupling.hpp)
   double fewest_steps_warned;     // steps per contact at the last warning
   double vector_cache[35];
+  std::unique_ptr<coupler::EnergyGuard> guard;    // stops a run whose coupling makes energy
+  void ledger_vector(const double grain_totals[7], double *out);    // collective; checks the guard
 
   void connect();
   void state_request(int kind, const std::string &path);    // save or load the MPM state

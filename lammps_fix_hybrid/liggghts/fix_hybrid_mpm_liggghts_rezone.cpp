@@ -289,5 +289,7 @@ void FixHybridMPMLiggghts::rezone(int source)
   // its lines in the rezone log (every rezone with rezone_log full, the conversion by default)
   say(run_log->rezone(report, source != coupler::kZonesOracle, opt->rezone_log, before, after));
   check_dem_timestep("after the rezone at step " + std::to_string(update->ntimestep));
+  double vector[coupler::kVecSize];
+  ledger_vector(grains_after, vector);    // the energy guard, at every rezone
   run_log->charge_rezone(start, counts.oracle_wait);
 }
