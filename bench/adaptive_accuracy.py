@@ -37,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 import tempfile
 from datetime import datetime, timezone
@@ -53,6 +54,7 @@ from dem_silo import run_dem_silo  # noqa: E402
 from hgtools.discharge import rate_ratio_se  # noqa: E402
 from hgtools.logs import ledger_closure, thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
+from hgtools.runner import RunFailed  # noqa: E402
 from mpm_results import load_run  # noqa: E402
 from scale_speed import silo_size  # noqa: E402
 from silo_flow_field import dem_states, dem_timestep, hybrid_states, mass_below  # noqa: E402
@@ -105,6 +107,15 @@ def variant_name(variant: dict) -> str:
     return "".join(f"_{k}{v}" for k, v in sorted(variant.items()))
 
 
+def failed_run(key: dict, error: RunFailed) -> dict:
+    """The row of one hybrid run that failed (its key's fields and why): the scene's other rows are
+    kept, and the report lists it. `why` is the run's ERROR line when it printed one (the fix's
+    energy guard, a crashed peer), else the failure's first lines."""
+    text = str(error)
+    errors = re.findall(r"^ERROR: .*$", text, re.MULTILINE)
+    return dict(key, failed=(errors[0] if errors else text)[:2000])
+
+
 def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds, variants=({},)) -> list[dict]:
     common = dict(aspect=aspect, width=width, d=D, np_=np_)
     h0 = aspect * width
@@ -124,21 +135,27 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds,
                      runout=other.runout / ref.runout - 1, ke=kinetic_energy_error(other_ke, ref_ke),
                      steps=other.steps / ref.steps)
         name = f"hybrid_a{aspect:g}_s{seed}_e{every}_o{oracle}{variant_name(variant)}"
-        hyb = run_collapse(**common, out=work / name, seed=seed,
-                           hybrid_vars={"hybrid": 2, "hevery": every, "hadapt": oracle, **variant})
+        key = dict(scene="collapse_2d", grains=ref.grains, aspect=aspect, seed=seed, exchange_every=every,
+                   oracle_every=oracle, **({"hybrid_vars": variant} if variant else {}))
+        try:
+            hyb = run_collapse(**common, out=work / name, seed=seed,
+                               hybrid_vars={"hybrid": 2, "hevery": every, "hadapt": oracle, **variant})
+        except RunFailed as e:
+            rows.append(failed_run(key, e))
+            print(f"collapse a = {aspect:g}{variant_label(key)}, seed {seed}, every {every}, oracle {oracle}: "
+                  f"failed: {rows[-1]['failed'][:300]}", flush=True)
+            continue
         points = load_run(work / name / "frames").frame(-1)["position"]
         surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, width / 20, 2 * D))
         rows.append(dict(
-            scene="collapse_2d", grains=ref.grains, aspect=aspect, seed=seed, exchange_every=every,
-            oracle_every=oracle,
+            key,
             runout_error=hyb.runout / ref.runout - 1, surface_error=surface_error(surface, ref_surface, h0),
             ke_error=kinetic_energy_error(thermo_kinetic_energy(work / name / "log.lammps"), ref_ke),
             rate_error=None, steps_ratio=hyb.steps / ref.steps, hybrid_at_rest=hyb.at_rest,
             noise_floor=floor["surface"], noise_floor_runout=floor["runout"], noise_floor_ke=floor["ke"],
             noise_floor_steps_ratio=floor["steps"], ledger_closure=closure(work / name / "log.lammps"),
             overlap=overlap(work / name / "log.lammps"), fill_work=fill_work(work / name / "log.lammps"),
-            dem_value=ref.runout, hybrid_value=hyb.runout, speedup=ref.wall_time / hyb.wall_time,
-            **({"hybrid_vars": variant} if variant else {})))
+            dem_value=ref.runout, hybrid_value=hyb.runout, speedup=ref.wall_time / hyb.wall_time))
         print(f"collapse a = {aspect:g}{variant_label(rows[-1])}, seed {seed}, every {every}, oracle {oracle}: "
               f"runout {rows[-1]['runout_error']:+.1%}, "
               f"surface {rows[-1]['surface_error']:.1%}, steps x{rows[-1]['steps_ratio']:.2f}", flush=True)
@@ -201,19 +218,25 @@ def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DE
         (ref, ref_out, ref_states), (other, _, other_states) = dem(seed), dem(floor_seed(seed))
         name = f"silo_{silo}_s{seed}_e{every}_o{oracle}{variant_name(variant)}"
         frames = {"houtev": frame_every(ref_out, every), "hout": work / name / "frames"}
-        hyb = run_dem_silo(out=work / name, seed=seed,
-                           hybrid_vars={"hevery": every, "hadapt": oracle, **hybrid, **variant, **frames}, **common)
+        key = dict(scene="silo_2d", silo=None if quick else silo, grains=ref.grains, aspect=None, seed=seed,
+                   exchange_every=every, oracle_every=oracle, **({"hybrid_vars": variant} if variant else {}))
+        try:
+            hyb = run_dem_silo(out=work / name, seed=seed,
+                               hybrid_vars={"hevery": every, "hadapt": oracle, **hybrid, **variant, **frames}, **common)
+        except RunFailed as e:
+            rows.append(failed_run(key, e))
+            print(f"silo ({'reduced' if quick else silo}){variant_label(key)}, seed {seed}, every {every}, "
+                  f"oracle {oracle}: failed: {rows[-1]['failed'][:300]}", flush=True)
+            continue
         hyb_states, _ = hybrid_states(work / name)
         rows.append(dict(
-            scene="silo_2d", silo=None if quick else silo, grains=ref.grains, aspect=None, seed=seed,
-            exchange_every=every, oracle_every=oracle,
+            key,
             runout_error=None, surface_error=None, ke_error=None, rate_error=hyb.rate / ref.rate - 1,
             steps_ratio=None, noise_floor=other.rate / ref.rate - 1, rate_error_se=rate_ratio_se(hyb, ref),
             noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
             dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time,
             compaction=compaction(hyb_states, ref_states), noise_floor_compaction=compaction(other_states, ref_states),
-            overlap=overlap(work / name / "log.lammps"), fill_work=fill_work(work / name / "log.lammps"),
-            **({"hybrid_vars": variant} if variant else {})))
+            overlap=overlap(work / name / "log.lammps"), fill_work=fill_work(work / name / "log.lammps")))
         print(f"silo ({'reduced' if quick else silo}){variant_label(rows[-1])}, seed {seed}, every {every}, "
               f"oracle {oracle}: rate {rows[-1]['rate_error']:+.1%}, compaction {rows[-1]['compaction']:+.1%}", flush=True)
     return rows
@@ -422,10 +445,16 @@ def row_key(r: dict) -> tuple:
             r.get("oracle_every"), variant_label(r))
 
 
+def scene_failed(r: dict) -> bool:
+    """A row that says its whole scene failed (a DEM reference, a 3D scene), not one run of it."""
+    return "failed" in r and "exchange_every" not in r
+
+
 def merge(kept: list[dict], rows: list[dict]) -> list[dict]:
-    """The new rows, and the kept ones that none of them measures again (a kept failure: none of its scene)."""
+    """The new rows, and the kept ones that none of them measures again (a kept failure of a whole
+    scene: none of its scene; a kept failure of one run: as any row, by its run)."""
     new, scenes = {row_key(r) for r in rows}, {r["scene"].split(" ")[0] for r in rows}
-    return [r for r in kept if row_key(r) not in new and not ("failed" in r and r["scene"].split(" ")[0] in scenes)] + rows
+    return [r for r in kept if row_key(r) not in new and not (scene_failed(r) and r["scene"].split(" ")[0] in scenes)] + rows
 
 
 def command(args) -> str:
@@ -460,7 +489,9 @@ def write(args, rows: list[dict]) -> None:
              + "; ".join(f"{k}, {v['label']}" for k, v in SILOS.items()) + ".", ""]
     lines += table([r for r in rows if "failed" not in r])
     lines += mean_table([r for r in rows if "failed" not in r])
-    lines += [f"\n{r['scene']} failed: {r['failed'][:300]}" for r in rows if "failed" in r]
+    lines += [f"\n{r['scene']} failed: {r['failed'][:300]}" for r in rows if scene_failed(r)]
+    lines += [f"\n{scene_name(r)}, packing {r.get('seed', REFERENCE_SEED)}, every {r['exchange_every']}, oracle every "
+              f"{r['oracle_every']}: the hybrid failed (not in the means): {r['failed'][:600]}" for r in rows if "failed" in r and not scene_failed(r)]
     lines += ["", "Targets (issue 14): runout within 5 %, final surface <= 3 % of H0, KE history <= 5 %, steps to "
               "rest <= 1.2x the DEM's; silo rate within 2 %; 3D within the LAMMPS-LIGGGHTS spread; the same for "
               "every exchange and oracle interval."]

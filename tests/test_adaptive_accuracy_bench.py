@@ -6,6 +6,7 @@ accuracy, so a rerun must replace exactly what it measures again and the means m
 from __future__ import annotations
 
 import sys
+from types import SimpleNamespace
 from pathlib import Path
 
 import pytest
@@ -168,3 +169,44 @@ def test_the_fill_work_is_the_fix_entrys_last_over_the_energy_released(tmp_path)
     old = tmp_path / "old.lammps"
     old.write_text("Step Time f_couple[19]\n0 0 1.0\n")
     assert bench.fill_work(old) is None
+
+
+def test_a_hybrid_run_that_fails_is_its_own_row_and_the_scenes_other_rows_stay(monkeypatch, tmp_path):
+    """silo_2d over two packings whose second hybrid stops (as the fix's energy guard stops a run):
+    the first packing's row is measured, the second is a row that names its run and the run's
+    ERROR line; merging it replaces only that run's kept row, and a kept failure of one run goes
+    only when that run is measured again."""
+    guard = ("ERROR: Fix hybrid/mpm: the coupling made 14.38 J (J/m in 2D) of energy between t = 0.3 s and "
+             "t = 0.34 s (/work/fix_hybrid_mpm.cpp:402)")
+
+    def run_dem_silo(out, seed, hybrid_vars=None, **kw):
+        if hybrid_vars and seed == 2:
+            raise bench.RunFailed(f"hybrid failed in the discharge (1): mpirun ...\nmpm_solver: error: LAMMPS "
+                                  f"stopped the coupled run\n{guard}\nLast command: run 1900 post no")
+        return SimpleNamespace(rate=1.0 if hybrid_vars is None else 0.98, grains=4920, wall_time=10.0)
+
+    for name, value in dict(run_dem_silo=run_dem_silo, dem_states=lambda out: None, frame_every=lambda out, e: 1,
+                            hybrid_states=lambda out: (None, None), compaction=lambda a, b: 0.0,
+                            rate_ratio_se=lambda a, b: 0.01, closure=lambda log: 0.0, overlap=lambda log: None,
+                            fill_work=lambda log: None).items():
+        monkeypatch.setattr(bench, name, value)
+    rows = bench.silo_2d(tmp_path, 1, False, [(10, 100)], [bench.REFERENCE_SEED, 2])
+    good, bad = rows
+    assert "failed" not in good and good["rate_error"] == pytest.approx(-0.02)
+    assert bad["failed"] == guard and (bad["seed"], bad["exchange_every"], bad["oracle_every"]) == (2, 10, 100)
+    assert not bench.scene_failed(bad)
+    args = SimpleNamespace(np_=1, out=tmp_path / "report.md", quick=False, scenes="silo_2d", exchanges="10",
+                           oracles="100", seeds=f"{bench.REFERENCE_SEED},2", silo="deep", hybrid_vars=[])
+    bench.write(args, rows)
+    report = args.out.read_text()
+    assert f"| silo_2d deep | 4920 |  | {bench.REFERENCE_SEED} | 10 | 100 | " in report
+    assert (f"silo_2d deep, packing 2, every 10, oracle every 100: the hybrid failed (not in the means): "
+            f"{guard}") in report
+
+    kept = [silo(bench.REFERENCE_SEED, 0.01, "deep"), silo(2, 0.03, "deep"), silo(3, 0.04, "deep")]
+    merged = bench.merge(kept, rows)
+    assert kept[2] in merged, "a packing not rerun stays"
+    assert kept[1] not in merged and bad in merged, "the failure replaces its own run's old row"
+    rerun = [silo(2, -0.01, "deep", "new")]
+    assert bench.merge(merged, rerun) == [r for r in merged if r is not bad] + rerun
+    assert bad in bench.merge(merged, [silo(3, 0.0, "deep", "new")]), "another run's rerun keeps the failure"
