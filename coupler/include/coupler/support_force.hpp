@@ -33,10 +33,11 @@ struct SupportNode {
 /// exchange) had to be re-earned by slip, and a settled hybrid bed crept at twice the DEM's
 /// rate (bench/results/settled_bed.md). What keeps it honest is passivity: the force may give
 /// the relative motion of the two sides no more energy than the coupling took out of it at that
-/// node (the agreement's dissipation, and the work the force itself did against the motion), an
-/// energy budget per node. A force that would overdraw it is dropped: in a shearing flow, where
-/// material streams through a node's force, a force carried regardless pumped the flow (a
-/// gravity-free patch gained 3x its kinetic energy).
+/// node (the agreement's dissipation, and the work the force itself did against the motion), and
+/// no more than the spring that the force is holds, an energy budget per node. A force that
+/// would overdraw it is dropped: in a shearing flow, where material streams through a node's
+/// force, a force carried regardless pumped the flow (a gravity-free patch gained 3x its kinetic
+/// energy).
 template <int D>
 SupportNode<D> next_support(const SupportNode<D>& old, const Eigen::Matrix<double, D, 1>& gap, double reduced_mass,
                             double closing, const Eigen::Matrix<double, D, 1>& transfer, double interval, double gain) {
@@ -56,6 +57,13 @@ SupportNode<D> next_support(const SupportNode<D>& old, const Eigen::Matrix<doubl
   // the agreement's dissipation: the relative kinetic energy 1/2 mu |gap|^2 less what it leaves
   next.budget = budget + 0.5 * reduced_mass * gap.squaredNorm() * closing * (2.0 - closing);
   if (interval > 0) next.force += (gain / interval) * transfer;
+  // The force is a spring on the two sides' relative displacement (F <- F - k gap T with
+  // k = gain closing mu / T^2): what it may give back is at most what that spring stores,
+  // |F|^2 / 2k. The agreements' dissipation is gone; banked for a whole run it let forces wound
+  // up at nodes holding a sliver of mass feed themselves (docs/design.md section 5.4).
+  if (gain > 0 && closing > 0 && reduced_mass > 0)
+    next.budget = std::min(next.budget, next.force.squaredNorm() * interval * interval /
+                                            (2.0 * gain * closing * reduced_mass));
   return next;
 }
 
