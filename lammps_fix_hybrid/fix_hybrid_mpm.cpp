@@ -393,12 +393,9 @@ void FixHybridMPM::fill_thermo_vector()
 
 void FixHybridMPM::ledger_vector(const double totals[7], double *out)
 {
-  double local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
-  ledger->sums(local);
-  MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
-  coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start, out);
-  if (!guard) return;    // before the ledger started
-  const std::string made = guard->check(out, dem_time());
+  const std::string made = coupler::guarded_thermo_vector(*ledger, world, *last_ack, exchanges + restart_exchanges,
+                                                          coupled_grains, totals, continuum_start, guard.get(),
+                                                          dem_time(), out);
   if (!made.empty()) error->all(FLERR, "Fix hybrid/mpm: " + made);
 }
 

@@ -546,4 +546,14 @@ template StepOutcome rezone_grains<2>(DemSession &, MPI_Comm, const RezonePlan<2
 template StepOutcome rezone_grains<3>(DemSession &, MPI_Comm, const RezonePlan<3> &, std::vector<signed char> &,
                                       RezoneAtoms<3> &, double *const *, StepAck &, RezoneCounts &);
 
+std::string guarded_thermo_vector(const EnergyLedger &ledger, MPI_Comm comm, const StepAck &ack,
+                                  std::int64_t exchanges, std::int64_t coupled_grains, const double grain_totals[7],
+                                  double continuum_start, EnergyGuard *guard, double time, double out[kVecSize]) {
+  double local[EnergyLedger::kSums], sums[EnergyLedger::kSums];
+  ledger.sums(local);
+  MPI_Allreduce(local, sums, EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, comm);
+  thermo_vector(ack, exchanges, coupled_grains, grain_totals, sums, continuum_start, out);
+  return guard ? guard->check(out, time) : std::string();
+}
+
 }    // namespace coupler

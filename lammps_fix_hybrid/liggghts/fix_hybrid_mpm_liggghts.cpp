@@ -402,12 +402,9 @@ double FixHybridMPMLiggghts::compute_vector(int n)
 // thermo output or a rezone (keyword energy_guard)
 void FixHybridMPMLiggghts::ledger_vector(const double totals[7], double *out)
 {
-  double local[coupler::EnergyLedger::kSums], sums[coupler::EnergyLedger::kSums];
-  ledger->sums(local);
-  MPI_Allreduce(local, sums, coupler::EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, world);
-  coupler::thermo_vector(*last_ack, exchanges + restart_exchanges, coupled_grains, totals, sums, continuum_start, out);
-  if (!guard) return;    // before the ledger started
-  const std::string made = guard->check(out, dem_time(update->ntimestep));
+  const std::string made = coupler::guarded_thermo_vector(*ledger, world, *last_ack, exchanges + restart_exchanges,
+                                                          coupled_grains, totals, continuum_start, guard.get(),
+                                                          dem_time(update->ntimestep), out);
   if (!made.empty()) fail(made);
 }
 

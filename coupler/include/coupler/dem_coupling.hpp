@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "coupler/dem_grains.hpp"
+#include "coupler/dem_ledger.hpp"
 #include "coupler/dem_rezone.hpp"
 #include "coupler/dem_session.hpp"
 #include "coupler/fix_options.hpp"
@@ -303,5 +304,12 @@ void end_dem_job(MPI_Comm dem_comm, const std::string &unconnected);
 /// MPM process exits 0 and the peer is forgotten. Returns the log line, or "" with the failure
 /// to tell it in `warning`.
 std::string finish_coupled_run(Link &link, std::int64_t last_step, std::string &warning);
+
+/// The fix's vector (thermo_vector) with the ledger's sums over the DEM ranks, and the energy
+/// guard's verdict on it at DEM time `time` (s): its error text when the coupling made more energy
+/// than the guard allows, else "" (also without a guard, before the ledger started). Collective.
+std::string guarded_thermo_vector(const EnergyLedger &ledger, MPI_Comm comm, const StepAck &ack,
+                                  std::int64_t exchanges, std::int64_t coupled_grains, const double grain_totals[7],
+                                  double continuum_start, EnergyGuard *guard, double time, double out[kVecSize]);
 
 }    // namespace coupler
