@@ -34,8 +34,8 @@ struct SupportNode {
 /// rate (bench/results/settled_bed.md). What keeps it honest is passivity: the force may give
 /// the relative motion of the two sides no more energy than the coupling took out of it at that
 /// node (the agreement's dissipation, and the work the force itself did against the motion), and
-/// no more than the spring that the force is holds, an energy budget per node. A force that
-/// would overdraw it is dropped: in a shearing flow, where material streams through a node's
+/// no more than the force stores as a spring: an energy budget per node. A force that would
+/// overdraw it is dropped: in a shearing flow, where material streams through a node's
 /// force, a force carried regardless pumped the flow (a gravity-free patch gained 3x its kinetic
 /// energy).
 template <int D>
