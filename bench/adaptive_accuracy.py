@@ -16,7 +16,9 @@ Scenes and measures:
 - collapse_3d, silo_3d (tools/dem3d_collapse.py, dem3d_silo.py, code hybrid): runout and rate
   at the default numerics; their noise floor is LIGGGHTS against LAMMPS from the same grains.
 Every hybrid row also gives the energy ledger's closure (largest residual over the largest
-energy figure, tools/hgtools/logs.py).
+energy figure, tools/hgtools/logs.py) and the energy guard's margin (in parentheses: the largest
+rise of what the coupling did, entries 23-28, above its lowest, over M |g| h; the fix stops a run
+at its energy_guard, 5 % by default).
 
 The 2D scenes run from one or more packings (--seeds): each packing's hybrids against the DEM
 from the same packing, its noise floor the DEM from another packing against that DEM (the
@@ -74,8 +76,13 @@ def numerics(exchanges, oracles) -> list[tuple[int, int]]:
     return list(dict.fromkeys(pairs))
 
 
-def closure(log: Path) -> float:
-    return ledger_closure(thermo_rows(log, require="f_couple[29]"))
+def ledger(log: Path) -> dict:
+    """A hybrid run's ledger figures: its closure (largest residual over the largest energy figure) and
+    the energy guard's margin (the fix's f_couple[36]: the largest rise of entries 23-28 above their
+    lowest over M |g| h; None from a fix without the entry)."""
+    rows = thermo_rows(log, require="f_couple[29]")
+    shares = [r["f_couple[36]"] for r in rows if "f_couple[36]" in r]
+    return dict(ledger_closure=ledger_closure(rows), guard_share=max(shares) if shares else None)
 
 
 def overlap(log: Path) -> float | None:
@@ -153,7 +160,7 @@ def collapse_2d(work: Path, np_: int, aspect: float, width: float, pairs, seeds,
             ke_error=kinetic_energy_error(thermo_kinetic_energy(work / name / "log.lammps"), ref_ke),
             rate_error=None, steps_ratio=hyb.steps / ref.steps, hybrid_at_rest=hyb.at_rest,
             noise_floor=floor["surface"], noise_floor_runout=floor["runout"], noise_floor_ke=floor["ke"],
-            noise_floor_steps_ratio=floor["steps"], ledger_closure=closure(work / name / "log.lammps"),
+            noise_floor_steps_ratio=floor["steps"], **ledger(work / name / "log.lammps"),
             overlap=overlap(work / name / "log.lammps"), fill_work=fill_work(work / name / "log.lammps"),
             dem_value=ref.runout, hybrid_value=hyb.runout, speedup=ref.wall_time / hyb.wall_time))
         print(f"collapse a = {aspect:g}{variant_label(rows[-1])}, seed {seed}, every {every}, oracle {oracle}: "
@@ -233,7 +240,7 @@ def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DE
             key,
             runout_error=None, surface_error=None, ke_error=None, rate_error=hyb.rate / ref.rate - 1,
             steps_ratio=None, noise_floor=other.rate / ref.rate - 1, rate_error_se=rate_ratio_se(hyb, ref),
-            noise_floor_se=rate_ratio_se(other, ref), ledger_closure=closure(work / name / "log.lammps"),
+            noise_floor_se=rate_ratio_se(other, ref), **ledger(work / name / "log.lammps"),
             dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time,
             compaction=compaction(hyb_states, ref_states), noise_floor_compaction=compaction(other_states, ref_states),
             overlap=overlap(work / name / "log.lammps"), fill_work=fill_work(work / name / "log.lammps")))
@@ -257,7 +264,7 @@ def collapse_3d(work: Path, np_: int) -> list[dict]:
                  oracle_every=ORACLE_DEFAULT, runout_error=hyb.runout / ref.runout - 1, surface_error=None,
                  ke_error=None, rate_error=None, steps_ratio=hyb.collapse_steps / ref.collapse_steps,
                  noise_floor=other.runout / ref.runout - 1, noise_floor_is="LIGGGHTS",
-                 ledger_closure=closure(work / "c3_hybrid" / "log.txt"), dem_value=ref.runout,
+                 **ledger(work / "c3_hybrid" / "log.txt"), dem_value=ref.runout,
                  hybrid_value=hyb.runout, speedup=ref.collapse_wall / hyb.collapse_wall)]
 
 
@@ -271,7 +278,7 @@ def silo_3d(work: Path, np_: int) -> list[dict]:
                  oracle_every=ORACLE_DEFAULT, runout_error=None, surface_error=None, ke_error=None,
                  rate_error=hyb.rate / ref.rate - 1, steps_ratio=None, noise_floor=other.rate / ref.rate - 1,
                  rate_error_se=rate_ratio_se(hyb, ref), noise_floor_se=rate_ratio_se(other, ref),
-                 noise_floor_is="LIGGGHTS", ledger_closure=closure(work / "s3_hybrid" / "log.txt"),
+                 noise_floor_is="LIGGGHTS", **ledger(work / "s3_hybrid" / "log.txt"),
                  dem_value=ref.rate, hybrid_value=hyb.rate, speedup=ref.wall_time / hyb.wall_time)]
 
 
@@ -282,7 +289,7 @@ def pct(v, se=None) -> str:
 
 def table(rows: list[dict]) -> list[str]:
     lines = ["| scene | grains | a | packing | exchange every | oracle every | runout | surface / H0 | KE history | "
-             "rate | compaction (floor) | steps to rest / DEM's | noise floor (another packing) | ledger closure | "
+             "rate | compaction (floor) | steps to rest / DEM's | noise floor (another packing) | ledger closure (guard) | "
              "speed vs DEM |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for r in rows:
@@ -297,7 +304,8 @@ def table(rows: list[dict]) -> list[str]:
             "" if r["ke_error"] is None else f"{100 * r['ke_error']:.1f} %", pct(r["rate_error"], r.get("rate_error_se")),
             "" if r.get("compaction") is None else f"{pct(r['compaction'])} ({pct(r['noise_floor_compaction'])})",
             "" if r["steps_ratio"] is None else f"{r['steps_ratio']:.2f}", floor,
-            f"{r['ledger_closure']:.1e}", f"{r['speedup']:.2f}x |"]))
+            f"{r['ledger_closure']:.1e}" + ("" if r.get("guard_share") is None else f" ({100 * r['guard_share']:.2f} %)"),
+            f"{r['speedup']:.2f}x |"]))
     return lines
 
 

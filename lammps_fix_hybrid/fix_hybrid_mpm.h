@@ -141,7 +141,7 @@ class FixHybridMPM : public Fix {
   std::unique_ptr<coupler::StepAck> last_ack;
   bigint coupled_grains;
   bigint vector_step;                     // step of the cached thermo vector
-  double vector_cache[35];               // f_ID[1..35], docs/fix_hybrid_mpm.md (coupler::ThermoEntry)
+  double vector_cache[36];               // f_ID[1..36], docs/fix_hybrid_mpm.md (coupler::ThermoEntry)
 
 
   // the grains' side of the energy ledger (coupler/dem_ledger.hpp), this rank's grains

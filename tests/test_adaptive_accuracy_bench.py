@@ -171,6 +171,25 @@ def test_the_fill_work_is_the_fix_entrys_last_over_the_energy_released(tmp_path)
     assert bench.fill_work(old) is None
 
 
+def test_the_ledger_figures_are_its_closure_and_the_guards_largest_share(tmp_path):
+    ledger = " ".join(f"f_couple[{k}]" for k in range(19, 30))
+
+    def row(step, total, residual, share=None):    # total 19 with the start in 20, residual 29
+        return " ".join(map(str, [step, step * 1e-4, total, total] + [0.0] * 8 + [residual]
+                            + ([] if share is None else [share]))) + "\n"
+
+    log = tmp_path / "log.lammps"    # two runs; the guard's share is the largest the fix reported
+    log.write_text(f"Step Time {ledger} f_couple[36]\n" + row(0, 10.0, 0.0, 0.0) + row(10, 10.0, 1e-14, 0.004)
+                   + "Loop time of 1.0 on 2 procs for 10 steps with 100 atoms\n"
+                   + f"Step Time {ledger} f_couple[36]\n" + row(10, 10.0, 1e-14, 0.004) + row(20, 10.0, -3e-14, 0.003))
+    got = bench.ledger(log)
+    assert got["guard_share"] == pytest.approx(0.004)
+    assert got["ledger_closure"] == pytest.approx(3e-15)
+    old = tmp_path / "old.lammps"    # a fix before the guard's entry
+    old.write_text(f"Step Time {ledger}\n" + row(0, 10.0, 0.0) + row(10, 10.0, 1e-14))
+    assert bench.ledger(old)["guard_share"] is None
+
+
 def test_a_hybrid_run_that_fails_is_its_own_row_and_the_scenes_other_rows_stay(monkeypatch, tmp_path):
     """silo_2d over two packings whose second hybrid stops (as the fix's energy guard stops a run):
     the first packing's row is measured, the second is a row that names its run and the run's
@@ -187,7 +206,8 @@ def test_a_hybrid_run_that_fails_is_its_own_row_and_the_scenes_other_rows_stay(m
 
     for name, value in dict(run_dem_silo=run_dem_silo, dem_states=lambda out: None, frame_every=lambda out, e: 1,
                             hybrid_states=lambda out: (None, None), compaction=lambda a, b: 0.0,
-                            rate_ratio_se=lambda a, b: 0.01, closure=lambda log: 0.0, overlap=lambda log: None,
+                            rate_ratio_se=lambda a, b: 0.01, ledger=lambda log: dict(ledger_closure=0.0, guard_share=0.002),
+                            overlap=lambda log: None,
                             fill_work=lambda log: None).items():
         monkeypatch.setattr(bench, name, value)
     rows = bench.silo_2d(tmp_path, 1, False, [(10, 100)], [bench.REFERENCE_SEED, 2])

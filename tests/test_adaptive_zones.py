@@ -358,8 +358,8 @@ def test_energy_guard_stops_a_run_whose_coupling_made_more_than_its_limit(tmp_pa
     unguarded shows how far the sum of ledger entries 23-28 (the continuum's steps, the agreements,
     the support force, the rezones) rises above its lowest, over the largest energy seen (the scale without
     gravity). With half that share as the limit the same run stops with the error that names the
-    energy made above the limit, and the MPM process stops with it; with three times it the run
-    goes through."""
+    energy made above the limit, and the MPM process stops with it. The fix's margin (f_couple[36],
+    the largest share the guard saw) is the smallest limit the run passes."""
     def run(limit):
         out = tmp_path / f"guard{limit:.6g}"
         out.mkdir()
@@ -378,6 +378,11 @@ def test_energy_guard_stops_a_run_whose_coupling_made_more_than_its_limit(tmp_pa
     rise = max(m - min(made[:i + 1]) for i, m in enumerate(made))
     assert rise > 1e-6 * scale, (rise, scale)    # the patch's coupling does make some energy
     share = rise / scale
+    # the fix's own margin (f_couple[36]) never falls and is at least what the rows show (the guard
+    # also looks at every rezone, between them)
+    margin = [r["f_couple[36]"] for r in rows]
+    assert all(b >= a for a, b in zip(margin, margin[1:])), margin
+    assert margin[-1] > share / 2, (margin[-1], share)
 
     stopped, _ = run(share / 2)
     out = stopped.stdout + stopped.stderr
@@ -391,6 +396,9 @@ def test_energy_guard_stops_a_run_whose_coupling_made_more_than_its_limit(tmp_pa
     assert "energy_guard 0 lets the run go on" in out
     assert "stopped the coupled run" in out, out    # the MPM process stopped with it
 
-    through, _ = run(3 * share)
+    # the margin is the smallest limit the run passes: just above it the run goes through, just below it stops
+    through, _ = run(1.01 * margin[-1])
     assert through.returncode == 0, through.stdout + through.stderr
+    below, _ = run(0.99 * margin[-1])
+    assert below.returncode != 0 and GUARD_STOP.search(below.stdout + below.stderr), below.stdout + below.stderr
 

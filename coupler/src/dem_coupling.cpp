@@ -553,7 +553,10 @@ std::string guarded_thermo_vector(const EnergyLedger &ledger, MPI_Comm comm, con
   ledger.sums(local);
   MPI_Allreduce(local, sums, EnergyLedger::kSums, MPI_DOUBLE, MPI_SUM, comm);
   thermo_vector(ack, exchanges, coupled_grains, grain_totals, sums, continuum_start, out);
-  return guard ? guard->check(out, time) : std::string();
+  if (!guard) return std::string();
+  std::string made = guard->check(out, time);
+  out[kVecGuardShare] = guard->largest_share();
+  return made;
 }
 
 }    // namespace coupler

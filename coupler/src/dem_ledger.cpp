@@ -43,6 +43,7 @@ void thermo_vector(const StepAck &a, std::int64_t exchanges, std::int64_t couple
   for (int k = kVecTimeCoupling; k <= kVecTimeShare; k++) out[k] = 0.0;
   out[kVecOverlap] = a.overlap;
   out[kVecEnergyFill] = a.energy_fill;
+  out[kVecGuardShare] = 0.0;    // the guard's (guarded_thermo_vector)
 }
 
 std::string EnergyGuard::check(const double vec[kVecSize], double time) {
@@ -57,6 +58,7 @@ std::string EnergyGuard::check(const double vec[kVecSize], double time) {
     return "";
   }
   const double rise = made - lowest_, scale = this->scale();
+  if (scale > 0) largest_share_ = std::max(largest_share_, rise / scale);
   if (!(limit_ > 0) || !(scale > 0) || rise <= limit_ * scale) return "";
   double d[kTerms];
   for (int k = 0; k < kTerms; k++) d[k] = vec[kVecEnergyContinuumSteps + k] - lowest_terms_[k];

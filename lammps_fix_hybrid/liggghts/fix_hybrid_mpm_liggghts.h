@@ -95,7 +95,7 @@ class FixHybridMPMLiggghts : public Fix {
   double polydispersity, continuum_start;
   std::unique_ptr<coupler::CouplingClock> clock;    // the coupling's clock (coupler/dem_coupling.hpp)
   double fewest_steps_warned;     // steps per contact at the last warning
-  double vector_cache[35];
+  double vector_cache[36];
   std::unique_ptr<coupler::EnergyGuard> guard;    // stops a run whose coupling makes energy
   void ledger_vector(const double grain_totals[7], double *out);    // collective; checks the guard
 

@@ -60,14 +60,16 @@ TEST(DemLedger, VectorAddsBothSidesAndItsResidualClosesTheLedger) {
   a.energy += 0.125;
   coupler::thermo_vector(a, 9, 33, totals, sums, continuum_start, v);
   EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyResidual], 0.125);
-  // f_ID[1..35] in docs/fix_hybrid_mpm.md: the timing entries come after the ledger's, which
-  // keep their numbers; they are the host's wall clock, left at zero here; then the overlap and
-  // the fill pressure's work
+  // f_ID[1..36] in docs/fix_hybrid_mpm.md: the timing entries come after the ledger's, which
+  // keep their numbers; they are the host's wall clock, left at zero here; then the overlap,
+  // the fill pressure's work and the energy guard's share (the guard's, zero here)
   EXPECT_EQ(coupler::kVecEnergyResidual, 28);
   EXPECT_EQ(coupler::kVecTimeCoupling, 29);
   EXPECT_EQ(coupler::kVecOverlap, 33);
   EXPECT_EQ(coupler::kVecEnergyFill, 34);
-  EXPECT_EQ(coupler::kVecSize, 35);
+  EXPECT_EQ(coupler::kVecGuardShare, 35);
+  EXPECT_EQ(coupler::kVecSize, 36);
+  EXPECT_EQ(v[coupler::kVecGuardShare], 0.0);
   for (int k = coupler::kVecTimeCoupling; k <= coupler::kVecTimeShare; k++) EXPECT_EQ(v[k], 0.0) << k;
   EXPECT_DOUBLE_EQ(v[coupler::kVecOverlap], 0.0625);
   EXPECT_DOUBLE_EQ(v[coupler::kVecEnergyFill], 0.375);
@@ -103,10 +105,15 @@ TEST(EnergyGuard, StopsOnlyWhenTheCouplingMakesMoreThanItsShareOfMgh) {
   EXPECT_NE(made.find("the support force's kicks +3"), std::string::npos) << made;    // since the lowest
   EXPECT_NE(made.find("the continuum's own steps +2"), std::string::npos) << made;
   EXPECT_NE(made.find("energy_guard 0 lets the run go on"), std::string::npos) << made;
-  // unguarded, the same rise passes
+  // its margin: the largest rise so far over the scale, 5.0 / 98.1 (the benches report it)
+  EXPECT_NEAR(guard.largest_share(), 5.0 / (40 * 9.81 * 0.25), 1e-12);
+  EXPECT_EQ(guard.check(vector_with(30, {-1, -1, -0.5, 3.0, -28, 28.5}).data(), 0.3), "");    // a smaller rise
+  EXPECT_NEAR(guard.largest_share(), 5.0 / (40 * 9.81 * 0.25), 1e-12);
+  // unguarded, the same rise passes, and the margin is still tracked
   auto off = coupler::EnergyGuard::over_box(0.0, g, lo, hi, 2);
   off.check(vector_with(40, {0, 0, 0, 0, 0, 0}).data(), 0.0);
   EXPECT_EQ(off.check(vector_with(30, {10, 0, 0, 10, 0, 0}).data(), 0.25), "");
+  EXPECT_NEAR(off.largest_share(), 20.0 / (40 * 9.81 * 0.25), 1e-12);
 }
 
 TEST(EnergyGuard, WithoutGravityTheScaleIsTheLargestEnergySeen) {

@@ -1,6 +1,6 @@
 #pragma once
 // The DEM side's figures for thermo output: the grains' side of the energy ledger
-// (docs/fix_hybrid_mpm.md, "Energy ledger") and the fix's global vector (entries 1-35, "Restart,
+// (docs/fix_hybrid_mpm.md, "Energy ledger") and the fix's global vector (entries 1-36, "Restart,
 // fix_modify, output"). Host-neutral: the host sums its ranks' figures and prints the vector.
 
 #include <cmath>
@@ -65,7 +65,10 @@ enum ThermoEntry {
   // the shared nodes' mass above the packing's over their mass (StepAck::overlap)
   kVecOverlap,
   // of kVecEnergyContinuumSteps, the fill pressure's work (StepAck::energy_fill; not a term of the sum)
-  kVecEnergyFill, kVecSize
+  kVecEnergyFill,
+  // the energy guard's margin: the largest rise so far of entries 23-28 above their lowest, over the
+  // scene's energy scale (EnergyGuard::largest_share; the run stops where it passes energy_guard)
+  kVecGuardShare, kVecSize
 };
 
 /// The vector from the last acknowledgement of the MPM process (the continuum's figures, as of
@@ -104,6 +107,9 @@ public:
   /// The energy scale (J; J/m in 2D): the potential energy the largest mass seen so far could
   /// release across the box, M |g| h; without gravity the largest total energy seen.
   double scale() const { return gravity_height_ > 0 ? largest_mass_ * gravity_height_ : largest_energy_; }
+  /// The largest rise above the lowest seen so far, over the scale at its time: how near the run
+  /// came to the limit (tracked with or without one, so that a bench can report it).
+  double largest_share() const { return largest_share_; }
 
   /// Look at the thermo vector at time `time` (s): an error message naming the energy made and
   /// the ledger's terms since their sum was lowest when it rose more than the limit, else "".
@@ -115,6 +121,7 @@ private:
   double largest_mass_ = 0, largest_energy_ = 0;
   double lowest_ = std::numeric_limits<double>::infinity();
   double lowest_time_ = 0;
+  double largest_share_ = 0;
   double lowest_terms_[kTerms] = {};
 };
 
