@@ -325,29 +325,40 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
     return rows
 
 
-def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path) -> dict:
+def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path, touch: bool = False) -> list[dict]:
     """The 2D column collapse, a = 2, L0 = n d: DEM and the adaptive hybrid from the same cached
-    column, to rest (the deck's criterion); error = final surface RMS over H0 (grains and points)."""
+    column, to rest (the deck's criterion); error = final surface RMS over H0 (grains and points).
+    With `touch` also the hybrid whose continuum may touch the back wall and the floor (htouch 1),
+    in the same minutes against the same DEM run."""
     common = dict(aspect=ASPECT, width=n * D, d=D, np_=np_, seed=seed, timeout=4 * 3600)
     if not settled_column(ASPECT, n * D, D, seed, {}).cached():    # the column first, not timed: both
         collapse(out=work / f"dem_c{n}", **common)                   # then start from the cached one
-    (dem, dem_cpu), (hyb, hyb_cpu) = side_by_side([
-        ("dem", partial(collapse, out=work / f"dem_c{n}", **common), None),
-        ("hybrid", partial(collapse, out=work / f"hybrid_c{n}", hybrid_vars={"hybrid": 2, "hcell": hcell}, **common),
-         None)])
-    points = load_run(work / f"hybrid_c{n}" / "frames").frame(-1)["position"]
-    surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, n * D / 20, 2 * D))
+    hybrids = [(f"hybrid_c{n}", {"hybrid": 2, "hcell": hcell}, None)]
+    if touch:
+        hybrids.append((f"hybrid_c{n}_touch1", {"hybrid": 2, "hcell": hcell, "htouch": 1}, 1))
+    timed = side_by_side([("dem", partial(collapse, out=work / f"dem_c{n}", **common), None),
+                          *((name, partial(collapse, out=work / name, hybrid_vars=hvars, **common), None)
+                            for name, hvars, _ in hybrids)])
+    (dem, dem_cpu), timed = timed[0], timed[1:]
     h0 = ASPECT * n * D
-    row = dict(scene="collapse_2d", grains=dem.grains, width_d=n, height_d=int(ASPECT * n), orifice_d=None,
-               error=surface_error(surface, np.array(dem.profile).T, h0), runout_error=hyb.runout / dem.runout - 1,
-               steps_ratio=hyb.steps / dem.steps, cores=np_, lammps_ranks=np_, mpm_threads=threads,
-               runout_dem=dem.runout, runout_hybrid=hyb.runout, hcell=hcell, interleaved=True, **speeds(dem, hyb, dem_cpu, hyb_cpu),
-               **cost_model(dem.loop_time, work / f"dem_c{n}" / "log.lammps", work / f"hybrid_c{n}" / "log.lammps",
-                            threads))
-    print(f"collapse L0 = {n} d: {dem.grains} grains, speedup {row['speedup']:.2f}x (model "
-          f"{row['predicted_speedup']:.2f}x), surface {row['error']:.1%} of H0, runout {row['runout_error']:+.1%}, "
-          f"continuum {row['continuum_share']:.0%}", flush=True)
-    return row
+    rows = []
+    for (name, _, touched), (hyb, hyb_cpu) in zip(hybrids, timed):
+        points = load_run(work / name / "frames").frame(-1)["position"]
+        surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, n * D / 20, 2 * D))
+        row = dict(scene="collapse_2d", grains=dem.grains, width_d=n, height_d=int(ASPECT * n), orifice_d=None,
+                   **{key: None for key in VARIANTS}, error=surface_error(surface, np.array(dem.profile).T, h0),
+                   runout_error=hyb.runout / dem.runout - 1, steps_ratio=hyb.steps / dem.steps, cores=np_,
+                   lammps_ranks=np_, mpm_threads=threads, runout_dem=dem.runout, runout_hybrid=hyb.runout,
+                   hcell=hcell, interleaved=True, **speeds(dem, hyb, dem_cpu, hyb_cpu),
+                   **cost_model(dem.loop_time, work / f"dem_c{n}" / "log.lammps", work / name / "log.lammps",
+                                threads))
+        row["touch"] = touched
+        print(f"collapse L0 = {n} d{'' if touched is None else ', touch 1'}: {dem.grains} grains, speedup "
+              f"{row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), surface {row['error']:.1%} of H0, "
+              f"runout {row['runout_error']:+.1%}, steps x{row['steps_ratio']:.2f}, continuum "
+              f"{row['continuum_share']:.0%}", flush=True)
+        rows.append(row)
+    return rows
 
 
 def table(rows: list[dict]) -> list[str]:
@@ -508,6 +519,9 @@ def main() -> int:
     ap.add_argument("--touch-floor", action="store_true",
                     help="silo: also run the hybrid with the floor touched (htouch 2: the side walls and the floor, "
                          "the region over the orifice discrete), alone and with each --depths/--surface-depths")
+    ap.add_argument("--collapse-touch", action="store_true",
+                    help="collapse: also run the hybrid whose continuum may touch the back wall and the floor "
+                         "(htouch 1), against the same DEM run")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of other (scene, size, cores) already in the JSON (each row has its date)")
     ap.add_argument("--pin", action="store_true",
@@ -547,7 +561,7 @@ def main() -> int:
                f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
                f"{f' --surface-depths {a.surface_depths}' if a.surface_depths else ''}"
                f"{f' --every {a.every}' if a.every else ''}"
-               f"{' --touch-floor' if a.touch_floor else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
+               f"{' --touch-floor' if a.touch_floor else ''}{' --collapse-touch' if a.collapse_touch else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     saved_rows = load(path)[1] if a.keep and path.exists() else []
     saved_date = json.loads(path.read_text())["date"] if saved_rows else stamp
     key = lambda r: (r["scene"], r["width_d"], r.get("height_d"), r["cores"], r.get("pinned", False),  # noqa: E731
@@ -577,7 +591,7 @@ def main() -> int:
     for n in sizes3d:
         finish(run_silo(silo3d, n, a.threads, a.work, variants, a.liggghts))
     for n in collapse_sizes:
-        finish([run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work)])
+        finish(run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work, a.collapse_touch))
     return 0
 
 
