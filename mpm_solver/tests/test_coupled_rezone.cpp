@@ -321,6 +321,54 @@ TEST(CoupledRezone, LightGrainsWithNoPointsWithinReachAreLeftAlone) {
   }
 }
 
+// A flow's front on a floor the continuum touches: cell after cell along the row turns hybrid as
+// half-weight grains arrive with no points in it, so each borrows half its material for its new
+// points from the points within reach (a deficit, at most half of theirs each time). Points
+// lighter than kLightestDebtor of a point's mass at the packing lend no more: without that the
+// points behind such a front were drained geometrically, to 1e-10 of a point's mass in the 100 d
+// collapse with the floor touched, where those slivers held pressures a hundred times the
+// continuum's until one went non-finite. Mass stays exact; a cell with no lender near keeps its
+// deficit in its grains.
+TEST(CoupledRezone, PointsLightAlreadyLendNoDeficit) {
+  coupler::Hello hello = square_box();
+  hello.continuum.packing_fraction = 0.82;
+  mpm::CoupledContinuum<2> continuum(hello);
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  auto cell_at = [&](int i, int j) {
+    return coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)));
+  };
+  const double packed = 0.8 * kSolidContent, weight = hello.continuum.grain_weight;
+  const double point_at_packing = 0.82 * kSolidContent / 4;  // 2 x 2 points a cell
+  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+  zones[cell_at(1, 5)] = coupler::kHybrid;
+  Rezone start;
+  add_grains(start, grid, cell_at(1, 5), packed);
+  const double points = rezone(continuum, zones, start).mass;  // the points: 1 - weight of the cell
+  ASSERT_NEAR(points, (1 - weight) * packed, 1e-12 * packed);
+  double material = packed;            // points and grains, the grains at their carried masses
+  double grains = weight * packed;     // the grains' carried mass
+  std::int64_t kept = 0;
+  for (int i = 2; i <= 10; ++i) {
+    zones[cell_at(i, 5)] = coupler::kHybrid;
+    Rezone front;
+    add_grains(front, grid, cell_at(i, 5), packed, {weight, weight, weight, weight});
+    continuum.plan_rezone(0.0, coupler::kZonesGiven, zones, coupler::OracleSettings{}, {}, {front.volumes});
+    const auto corrections = continuum.complete_rezone({{front.sums.at(cell_at(i, 5))}});
+    ASSERT_EQ(corrections.size(), 1u) << "cell " << i;
+    const coupler::StepAck out = continuum.totals(0);
+    kept += out.rests_kept;
+    material += weight * packed;  // the half-weight grains that arrived
+    // the cells behind keep their grains; the new cell's take the correction's factor
+    grains += packed * corrections[0].mass_factor;  // the factor is on their solid mass
+    EXPECT_NEAR(out.mass + grains, material, 1e-12 * material) << "cell " << i;
+    material = out.mass + grains;
+    const auto& pts = continuum.solver().points();
+    for (std::size_t p = 0; p < pts.size(); ++p)
+      EXPECT_GE(pts.mass[p], 0.5 * coupler::kLightestDebtor * point_at_packing) << "cell " << i << ", point " << p;
+  }
+  EXPECT_GE(kept, 1) << "the lenders ran light: a cell kept its deficit";
+}
+
 // rest_hold through the continuum's own rezone (docs/design.md 5.5, rule 7): a bed of grains
 // whose free surface rises by two cells (grains poured on top) asks the oracle to step its cells
 // under the old surface towards continuum. At rest (the grains' and points' speed below

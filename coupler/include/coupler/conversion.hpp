@@ -193,6 +193,10 @@ inline constexpr double kLightGrains = 0.99;
 /// the rezone could only keep the deficit, and would again at every oracle step (a collapse
 /// whose continuum was gone replanned about 5 cells at every oracle step to its end).
 inline constexpr int kRestReach = 3;
+/// Points lighter than this share of a point's mass at the packing lend no deficit to a rest
+/// (mpm::CoupledContinuum::complete_rezone): deficits of at most half their mass each, taken
+/// again and again from the points behind a flow's front, drained them to slivers.
+inline constexpr double kLightestDebtor = 0.1;
 
 /// The heaviest a rezone makes grains, as a multiple of their solid share, where a cell's surplus
 /// of material finds no points near to take it (the continuum is nearly gone).
