@@ -45,7 +45,8 @@ alone is over an hour here: a pour of 40,000 steps, then settle loops of 4,000 s
 Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collapse/dem_2d.lmp with
 `hybrid 2`, `hcell 0`): the DEM and the adaptive hybrid collapse from the same cached column to
 rest; error = the final surface's RMS over H0, and the runout's relative error (the two in turns of
-5 s, as a collapse has no record of how far it is).
+5 s, as a collapse has no record of how far it is). --collapse-touch adds the hybrid whose continuum
+may touch the back wall and the floor (deck variable htouch 1), in the same turns against the same DEM.
 
 Silo rows may also run the hybrid at other zone depths (--depths, grain diameters) against the same
 DEM run: the error against wall time as the continuum comes closer to the free surface, the floor
@@ -64,7 +65,7 @@ hybrids, `--sizes 160` then needs about 55 min alone on a fast day (the DEM ~43 
 2026-11-28 (the DEM 99 min, its speed drifting 2x between chunks: compare the model's prediction).
 
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--silo3d-depth 3] [--liggghts]
-                            [--collapse-sizes 50,100,200]
+                            [--collapse-sizes 50,100,200] [--collapse-touch]
                             [--depths 12,24] [--surface-depths 12] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
        bench/scale_speed.py --prepare --sizes 160   (only the settled silos, cached; not timed)
