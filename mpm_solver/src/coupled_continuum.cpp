@@ -420,7 +420,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   // made to fit), its points the remainder (a discrete cell's then wait there for room for grains).
   // A deficit is not taken from points already light (under coupler::kLightestDebtor of a point's
   // mass at the packing): taken again and again from the same points behind a flow's front,
-  // deficits of at most half their mass each drained them to 1e-10 of it (the 100 d collapse with
+  // deficits of at most half their mass each drained them to 1e-8 of it (the 100 d collapse with
   // the back wall and the floor touched: slivers in the hybrid cells at its front held pressures
   // a hundred times the continuum's, and one went non-finite at t = 0.62 s).
   constexpr double kRestCarriers = 2.0;

@@ -325,7 +325,7 @@ TEST(CoupledRezone, LightGrainsWithNoPointsWithinReachAreLeftAlone) {
 // half-weight grains arrive with no points in it, so each borrows half its material for its new
 // points from the points within reach (a deficit, at most half of theirs each time). Points
 // lighter than kLightestDebtor of a point's mass at the packing lend no more: without that the
-// points behind such a front were drained geometrically, to 1e-10 of a point's mass in the 100 d
+// points behind such a front were drained geometrically, to 1e-8 of a point's mass in the 100 d
 // collapse with the floor touched, where those slivers held pressures a hundred times the
 // continuum's until one went non-finite. Mass stays exact; a cell with no lender near keeps its
 // deficit in its grains.
