@@ -83,6 +83,14 @@ def test_lmp_hybrid_handshake_steps_and_clean_finish(tmp_path, hybrid_programs, 
     assert proc.returncode == 0, text
     assert f"handshake ok with LAMMPS 29 Sep 2021 on {np_} rank(s)" in text
     assert "coupled run finished at LAMMPS step 200 after 20 exchange(s)" in text
+    # the MPM side's time ledger: its terms add up to its total (each printed to 3 digits)
+    ledger = re.search(r"mpm_solver: wall time (\S+) s: (.*)", text)
+    assert ledger, text
+    terms = dict((name.strip(), float(t)) for name, t in re.findall(r"([a-zA-Z0-9 ]+?) (\S+?)(?:,|$)", ledger[2]))
+    assert set(terms) == {"waiting for the DEM host", "substeps before the agreement", "agreement and replies",
+                          "G2P", "output", "substeps after the acknowledgement", "rezones", "other"}, ledger[0]
+    assert sum(terms.values()) == pytest.approx(float(ledger[1]), rel=0.01, abs=1e-3), ledger[0]
+    assert terms["agreement and replies"] > 0 and terms["waiting for the DEM host"] > 0, ledger[0]
     lammps_log = log.read_text()
     assert "fix hybrid/mpm: handshake ok with the MPM process (1 rank(s)): mpm_solver" in lammps_log
     assert re.search(r"mpm_solver \S+ \(pid \d+, 1 OpenMP thread\) ready", lammps_log), lammps_log

@@ -378,6 +378,41 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
   return 0;
 }
 
+/// Where the MPM process's wall time goes in a coupled run, printed when it finishes: the DEM
+/// host waits on the agreement (before the acknowledgement) and, when the rest outlasts its next
+/// steps, on the header after it, so these are the terms to read against the fix's own wait.
+class ServeLedger {
+ public:
+  enum Phase { kIdle, kSubstepsBefore, kAgreement, kG2P, kOutput, kSubstepsAfter, kRezone, kOther, kCount };
+  /// Adds the time since the last mark to `phase`.
+  void lap(Phase phase) {
+    const auto now = Clock::now();
+    seconds_[phase] += std::chrono::duration<double>(now - mark_).count();
+    mark_ = now;
+  }
+  std::string summary() const {
+    static const char* const names[kCount] = {"waiting for the DEM host", "substeps before the agreement",
+                                              "agreement and replies", "G2P", "output",
+                                              "substeps after the acknowledgement", "rezones", "other"};
+    double total = 0;
+    for (double t : seconds_) total += t;
+    std::string out = "wall time " + format_seconds(total) + " s:";
+    for (int i = 0; i < kCount; ++i)
+      out += std::string(i ? "," : "") + " " + names[i] + " " + format_seconds(seconds_[i]);
+    return out;
+  }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  static std::string format_seconds(double t) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3g", t);
+    return buf;
+  }
+  Clock::time_point mark_ = Clock::now();
+  double seconds_[kCount] = {};
+};
+
 /// Serves the coupled run until Finish (returns 0), an AbortNote (returns 1) or a failure it
 /// reported to the DEM ranks (returns 2). `step` follows the last step header.
 template <int D>
@@ -393,13 +428,16 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
   }
   const double idle = hello.idle_timeout;
   HeaderClock clock(hello);
+  ServeLedger ledger;
   long steps = 0;
   for (;;) {
+    ledger.lap(ServeLedger::kOther);
     const coupler::Message m = link.receive(
         0, {coupler::kTagStep, coupler::kTagFinish, coupler::kTagAbort},
         "the next message from fix hybrid/mpm (a step header or the finish message; the fix keyword 'idle' sets "
         "this wait)",
         idle, ended);
+    ledger.lap(ServeLedger::kIdle);
     if (m.tag == coupler::kTagStep) {
       const auto h = m.as<coupler::StepHeader>();
       step = h.step;
@@ -408,6 +446,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
       if (h.kind == coupler::kStepCouple) fault.check("unknown", h.step);
       if (h.kind == coupler::kStepRezone) {
         if (rezone<D>(link, built.get(), h, deferred_error, opt) != 0) return 2;
+        ledger.lap(ServeLedger::kRezone);
         continue;
       }
       if (h.kind == coupler::kStepSave || h.kind == coupler::kStepLoad) {
@@ -439,6 +478,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         continue;
       }
       const auto nodes = receive_from_all<coupler::NodeRecord>(link, coupler::kTagNodes, "the grain node sums" + at);
+      ledger.lap(ServeLedger::kIdle);
       // The exchange's critical path for the DEM host ends with the acknowledgement; the rest of the
       // continuum's work (G2P, output, the substeps to the next exchange) overlaps the DEM host's
       // next steps. Its errors are reported at the next exchange.
@@ -448,6 +488,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         try {
           fault.check("exchange", h.step);
           built->advance_to(h.time);
+          ledger.lap(ServeLedger::kSubstepsBefore);
           const auto replies = built->agree(nodes, h.field_shares != 0);
           for (int r = 0; r < link.remote_size(); ++r)
             link.send_array(r, coupler::kTagNodeReply, replies[r], "the node velocities" + at);
@@ -459,6 +500,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         }
       }
       ack_all(link, ack, "the acknowledgement of step " + std::to_string(h.step));
+      ledger.lap(ServeLedger::kAgreement);
       if (ack.status != 0) {
         error_line(coupler::get_text(ack.message));
         return 2;
@@ -469,9 +511,13 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
       if (h.output) grains = receive_from_all<coupler::GrainRecord>(link, coupler::kTagGrains, "the grains" + at);
       try {
         fault.check("after", h.step);
+        ledger.lap(ServeLedger::kOutput);
         built->complete_step();
+        ledger.lap(ServeLedger::kG2P);
         if (h.output) built->write_frame(grains, h.step);
+        ledger.lap(ServeLedger::kOutput);
         if (h.next_time > h.time) built->advance_to(h.next_time);
+        ledger.lap(ServeLedger::kSubstepsAfter);
       } catch (...) {
         deferred_error = "the continuum failed after step " + std::to_string(h.step) + ": " +
                          describe_exception(std::current_exception());
@@ -486,6 +532,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
       say(opt, "coupled run finished at " + host + (host == coupler::kUnknownDemHost ? "'s" : "") + " step " +
                    std::to_string(f.step) + " after " + std::to_string(steps) +
                    " exchange(s); " + std::to_string(built->solver().points().size()) + " material points");
+      say(opt, ledger.summary());
       link.mark(coupler::Link::State::kFinished);
       return 0;
     } else {
