@@ -157,19 +157,29 @@ def side_by_side(runs: list[tuple[str, callable, Path | None]]) -> list[tuple]:
     """The runs of one comparison (name, the call, its discharge record or None) in the same
     minutes, one at a time (hgtools.interleave: each quantum to the run least far along its record,
     in turns without one), and for each its result, its wall and loop time made the time it ran,
-    and the CPU seconds its processes used (the steadier measure of the work on a shared machine)."""
+    the CPU seconds its processes used (the steadier measure of the work on a shared machine) and
+    its running fraction (below)."""
     for _, _, record in runs:
         if record is not None:
             record.unlink(missing_ok=True)    # a former run's record is no measure of this one's progress
     jobs = [Job(name, run, no_progress if record is None else partial(recorded_time, record))
             for name, run, record in runs]
     return [(replace(o.result, wall_time=o.running(o.result.wall_time), loop_time=o.running(o.result.loop_time)),
-             o.cpu_s) for o in interleave(jobs, quantum=QUANTUM, max_stop=MAX_STOP)]
+             o.cpu_s, running_fraction(o)) for o in interleave(jobs, quantum=QUANTUM, max_stop=MAX_STOP)]
 
 
-def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim: int = 2, every: int = EVERY) -> dict:
+def running_fraction(o) -> float:
+    """The share of a job's loop time in which it ran. The fix's time ledger (f_couple[30-32])
+    counts the stops too: a stop falls in whichever ledger term is running, in proportion to its
+    share of the running time, so the ledger times this fraction estimates the running terms."""
+    return o.running(o.result.loop_time) / o.result.loop_time if o.result.loop_time > 0 else 1.0
+
+
+def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim: int = 2, every: int = EVERY,
+               running: float = 1.0) -> dict:
     """The cost model's terms and prediction (module docstring), and the hybrid's ledger (`every`:
-    its exchange interval, steps)."""
+    its exchange interval, steps; `running`: the hybrid's running fraction, which scales its
+    ledger's wall times to the time it ran)."""
     dem_rows = thermo_rows(dem_log, require="v_ng")
     c_g = dem_loop / steps_weighted(dem_rows, lambda r: r["v_ng"])
     led = hybrid_ledger(hyb_log, every=every)
@@ -178,8 +188,8 @@ def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim:
                  exchange=c_x * led["coupled_exchanges"])
     return dict(predicted_speedup=dem_loop / sum(model.values()), continuum_share=led["share_mean"],
                 cost_per_grain_step_s=c_g, cost_per_point_substep_s=c_p, cost_per_coupled_grain_exchange_s=c_x,
-                model_s=model, coupling_s=led["coupling_s"], mpm_wait_s=led["mpm_wait_s"],
-                rezone_s=led["rezone_s"], points_max=led["points_max"], share_t=led["share_t"], share=led["share"])
+                model_s=model, coupling_s=running * led["coupling_s"], mpm_wait_s=running * led["mpm_wait_s"],
+                rezone_s=running * led["rezone_s"], ledger_running_fraction=running, points_max=led["points_max"], share_t=led["share_t"], share=led["share"])
 
 
 def speeds(dem, hyb, dem_cpu: float, hyb_cpu: float) -> dict:
@@ -299,13 +309,13 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
     timed = side_by_side([(name, partial(silo.run, n=n, out=work / name, hybrid_vars=hvars),
                            work / name / "discharge.dat")
                           for hvars, _, name in [(None, None, f"dem_{tag}{n}"), *hybrids]])
-    (dem, dem_cpu), timed = timed[0], timed[1:]
+    (dem, dem_cpu, _), timed = timed[0], timed[1:]
     noise = None
     if liggghts:    # its rate only: not timed
         lig = silo.run(n, work / f"liggghts_{tag}{n}", code="liggghts")
         noise = lig.rate / dem.rate - 1
     rows = []
-    for (hvars, zones, name), (hyb, hyb_cpu), variant in zip(hybrids, timed, (None, *variants)):
+    for (hvars, zones, name), (hyb, hyb_cpu, running), variant in zip(hybrids, timed, (None, *variants)):
         row = dict(scene=silo.scene, grains=dem.grains, width_d=n, height_d=round(silo.depth * n), orifice_d=silo.orifice_d,
                    **zones, error=hyb.rate / dem.rate - 1, runout_error=None, discharge_s=silo.common["tdis"],
                    cores=silo.common["np_"],
@@ -317,7 +327,7 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
                                                     noise_floor_se=rate_ratio_se(lig, dem))),
                    **speeds(dem, hyb, dem_cpu, hyb_cpu),
                    **cost_model(dem.loop_time, work / f"dem_{tag}{n}" / silo.log, work / name / silo.log, threads,
-                                silo.dim, exchange_interval(hvars, work / name / silo.log)))
+                                silo.dim, exchange_interval(hvars, work / name / silo.log), running))
         print(f"{silo.scene} W = {n} d{'' if variant is None else ', ' + variant_label(row)}: {dem.grains} grains, "
               f"speedup {row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), rate {row['error']:+.1%}"
               f"{'' if noise is None else f' (LIGGGHTS {noise:+.1%})'}, continuum {row['continuum_share']:.0%}",
@@ -340,10 +350,10 @@ def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Pa
     timed = side_by_side([("dem", partial(collapse, out=work / f"dem_c{n}", **common), None),
                           *((name, partial(collapse, out=work / name, hybrid_vars=hvars, **common), None)
                             for name, hvars, _ in hybrids)])
-    (dem, dem_cpu), timed = timed[0], timed[1:]
+    (dem, dem_cpu, _), timed = timed[0], timed[1:]
     h0 = ASPECT * n * D
     rows = []
-    for (name, _, touched), (hyb, hyb_cpu) in zip(hybrids, timed):
+    for (name, _, touched), (hyb, hyb_cpu, running) in zip(hybrids, timed):
         points = load_run(work / name / "frames").frame(-1)["position"]
         surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, n * D / 20, 2 * D))
         row = dict(scene="collapse_2d", grains=dem.grains, width_d=n, height_d=int(ASPECT * n), orifice_d=None,
@@ -352,7 +362,7 @@ def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Pa
                    lammps_ranks=np_, mpm_threads=threads, runout_dem=dem.runout, runout_hybrid=hyb.runout,
                    hcell=hcell, interleaved=True, **speeds(dem, hyb, dem_cpu, hyb_cpu),
                    **cost_model(dem.loop_time, work / f"dem_c{n}" / "log.lammps", work / name / "log.lammps",
-                                threads))
+                                threads, running=running))
         row["touch"] = touched
         print(f"collapse L0 = {n} d{'' if touched is None else ', touch 1'}: {dem.grains} grains, speedup "
               f"{row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), surface {row['error']:.1%} of H0, "
@@ -385,10 +395,11 @@ def table(rows: list[dict]) -> list[str]:
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
         depth = f", {variant_label(r, unit='')}" if is_variant(r) else ""
+        stops = " with stops" if r.get("interleaved") and "ledger_running_fraction" not in r else ""
         out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']}{depth} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
                    f"{cpu} | {r['predicted_speedup']:.2f}x | {error} | {runout} | {r['coupling_s']:.1f} "
-                   f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}) | {r.get('date', '').removesuffix(' UTC')}"
+                   f"({r['mpm_wait_s']:.1f}, {r['rezone_s']:.1f}){stops} | {r.get('date', '').removesuffix(' UTC')}"
                    f"{', same minutes' if r.get('interleaved') else ''} |")
     return out
 
@@ -477,7 +488,9 @@ def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
             "same LAMMPS ranks, the hybrid's MPM process (its threads) working while LAMMPS waits; a 2-core machine "
             "that may be shared (compare ratios). Rows marked 'same minutes' ran their DEM and hybrids interleaved, "
             "one at a time in quanta of 5 s (tools/hgtools/interleave.py), each timed by its quanta; earlier rows "
-            "ran them one after the other.", "",
+            "ran them one after the other. The coupling column is the fix's time ledger scaled to the time the "
+            "hybrid ran; in rows marked 'with stops' (interleaved before 2026-12-04 20:30 UTC) it also counts the "
+            "quanta of the other runs of the row, so it overstates the coupling by their share.", "",
             *table(rows), "", "![speedup against size](scale_speed.png)", ""]
     write_report(out, "\n".join(text))
 
@@ -539,6 +552,9 @@ def main() -> int:
     a = ap.parse_args()
     if not a.silo3d_depth > 0:
         ap.error(f"--silo3d-depth is the fill height over the width and must be > 0, not {a.silo3d_depth:g}")
+    if a.out.is_dir() or a.out.suffix != ".md":
+        ap.error(f"--out is the report's file (its JSON and plot go beside it), e.g. {a.out / 'scale_speed.md'}, "
+                 f"not {a.out}")
     path = a.out.with_suffix(".json")
     if a.render:
         saved, rows = load(path)

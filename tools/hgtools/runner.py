@@ -115,12 +115,15 @@ def command(code: str, deck: Path, variables: dict, log: Path, np_: int = 1, exe
 def run_deck(code: str, deck: Path, variables: dict, log: Path, np_: int = 1, exe: str | None = None,
              timeout: float = 3600, cwd: Path | None = None, threads: int | None = None) -> Run:
     """Runs `deck` with `code` and returns the Run (failures are the caller's to check, as what a
-    run must leave differs: Run.check). threads: OMP_NUM_THREADS of the run (default: inherited)."""
+    run must leave differs: Run.check); its output goes to `log`.out too. threads: OMP_NUM_THREADS
+    of the run (default: inherited)."""
     log = Path(log)
     cmd = command(code, deck, variables, log, np_, exe)
     env = dict(os.environ, OMP_NUM_THREADS=str(threads)) if threads else None
     t0 = time.time()
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd or log.parent, env=env)
+    # beside the log: what the log does not hold (the MPM process's lines, e.g. its time ledger)
+    log.with_name(log.name + ".out").write_text(proc.stdout + proc.stderr)
     return Run(code, cmd, proc, time.time() - t0, log)
 
 
