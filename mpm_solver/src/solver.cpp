@@ -485,12 +485,22 @@ void Solver<D>::g2p(double dt) {
     const auto& x = points_.x[first_bad];
     std::ostringstream msg;
     if (!std::isfinite(points_.v[first_bad].squaredNorm()) || !std::isfinite(points_.stress[first_bad].sum()) ||
-        !(points_.J[first_bad] > 0))
+        !(points_.J[first_bad] > 0)) {
+      // A point far lighter than the others goes first whatever the step (its mass divides its
+      // grid velocities): say so rather than blame the time step alone.
+      const double mean_mass =
+          std::accumulate(points_.mass.begin(), points_.mass.end(), 0.0) / static_cast<double>(n_points);
+      const double mass_share = points_.mass[first_bad] / mean_mass;
       msg << "the MPM state became non-finite or inverted at step " << steps_ + 1 << " (t = " << time_ + dt
           << " s, point " << first_bad << " at " << format_vec(x.data(), D) << ": J = " << points_.J[first_bad]
           << ", |v| = " << points_.v[first_bad].norm() << " m/s, dt |grad v| = " << dt * points_.C[first_bad].norm()
-          << "); the time step is too large for this material: lower [time] cfl or dt";
-    else
+          << ", mass " << mass_share << " of the mean point's); ";
+      if (mass_share < 1e-3)
+        msg << "a point that light is a sliver the points' making or a coupling left, not a material the time step "
+               "resolves: report it with the input that made it";
+      else
+        msg << "the time step is too large for this material: lower [time] cfl or dt";
+    } else
       msg << "material point " << first_bad << " left the grid domain at t = " << time_ + dt
           << " s, position " << format_vec(x.data(), D) << "; the domain is "
           << format_vec(grid_.domain_lower.data(), D) << " to " << format_vec(grid_.domain_upper.data(), D)

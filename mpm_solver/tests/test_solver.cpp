@@ -1,4 +1,5 @@
 // Whole-solver checks: conservation, lithostatic equilibrium, elastic wave speed.
+#include <limits>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -389,6 +390,33 @@ TEST(Solver, TransferMemoryIsTheShareOfTheReferenceStepNotTaken) {
   scene.blocks.push_back(box({0.2, 0.0, 0}, {0.4, 0.2, 0}, 4));
   mpm::Solver<2> s(scene);
   EXPECT_DOUBLE_EQ(s.transfer_reference_dt(), s.stable_dt());
+}
+
+// A point gone non-finite stops the run with a message that names the likely cause: the time
+// step for a point of the material's mass, a sliver for a point far lighter than the others.
+std::string non_finite_message(double first_point_mass_share) {
+  mpm::Scene scene = base_scene(2);
+  scene.blocks.push_back(box({0.2, 0.0, 0}, {0.4, 0.2, 0}, 4));
+  mpm::Solver<2> s(scene);
+  auto& p = s.points();
+  p.mass[0] *= first_point_mass_share;
+  p.v[0][0] = std::numeric_limits<double>::quiet_NaN();
+  try {
+    s.step(s.stable_dt());
+  } catch (const mpm::UserError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(Solver, NonFinitePointBlamesTheStepOrASliver) {
+  const std::string usual = non_finite_message(1.0);
+  EXPECT_NE(usual.find("became non-finite or inverted"), std::string::npos) << usual;
+  EXPECT_NE(usual.find("lower [time] cfl or dt"), std::string::npos) << usual;
+  const std::string sliver = non_finite_message(1e-8);
+  EXPECT_NE(sliver.find("point 0 "), std::string::npos) << sliver;
+  EXPECT_NE(sliver.find("a sliver"), std::string::npos) << sliver;
+  EXPECT_EQ(sliver.find("lower [time] cfl"), std::string::npos) << sliver;
 }
 
 TEST(Solver, UnstableFixedStepIsRefusedWithTheSafeStep) {
