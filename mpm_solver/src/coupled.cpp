@@ -381,9 +381,11 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
 /// Where the MPM process's wall time goes in a coupled run, printed when it finishes: the DEM
 /// host waits on the agreement (before the acknowledgement) and, when the rest outlasts its next
 /// steps, on the header after it, so these are the terms to read against the fix's own wait.
+/// The agreement is the continuum's work on that path (the agreed velocities, the grid totals
+/// the acknowledgement carries); the replies are the messages that carry them.
 class ServeLedger {
  public:
-  enum Phase { kIdle, kSubstepsBefore, kAgreement, kG2P, kOutput, kSubstepsAfter, kRezone, kOther, kCount };
+  enum Phase { kIdle, kSubstepsBefore, kAgreement, kReplies, kG2P, kOutput, kSubstepsAfter, kRezone, kOther, kCount };
   /// Adds the time since the last mark to `phase`.
   void lap(Phase phase) {
     const auto now = Clock::now();
@@ -392,7 +394,7 @@ class ServeLedger {
   }
   std::string summary() const {
     static const char* const names[kCount] = {"waiting for the DEM host", "substeps before the agreement",
-                                              "agreement and replies", "G2P", "output",
+                                              "agreement", "replies and acknowledgement", "G2P", "output",
                                               "substeps after the acknowledgement", "rezones", "other"};
     double total = 0;
     for (double t : seconds_) total += t;
@@ -490,9 +492,12 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
           built->advance_to(h.time);
           ledger.lap(ServeLedger::kSubstepsBefore);
           const auto replies = built->agree(nodes, h.field_shares != 0);
+          ledger.lap(ServeLedger::kAgreement);
           for (int r = 0; r < link.remote_size(); ++r)
             link.send_array(r, coupler::kTagNodeReply, replies[r], "the node velocities" + at);
+          ledger.lap(ServeLedger::kReplies);
           ack = built->grid_totals(h.step);
+          ledger.lap(ServeLedger::kAgreement);
         } catch (const coupler::PeerError&) {
           throw;
         } catch (...) {
@@ -500,7 +505,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
         }
       }
       ack_all(link, ack, "the acknowledgement of step " + std::to_string(h.step));
-      ledger.lap(ServeLedger::kAgreement);
+      ledger.lap(ServeLedger::kReplies);
       if (ack.status != 0) {
         error_line(coupler::get_text(ack.message));
         return 2;
