@@ -19,7 +19,8 @@ quanta in which each ran (speedup = DEM over hybrid), the steady discharge rate 
 two runs' own fluctuation, hgtools.discharge.rate_standard_error; beside it the same for the grains
 counted, since a hybrid's grains may carry more or less than their solid mass), the continuum's share
 of the material (1 - the grains' carried mass over the total, f_couple[8], averaged over the
-thermo rows), and the hybrid's time ledger (entries 30-32: coupling, MPM wait, rezones).
+thermo rows), and the hybrid's time ledger (entries 30-32: coupling, MPM wait, rezones), scaled to
+the time the hybrid ran (running_fraction; docs/design.md 7.3).
 
 Cost model (docs/design.md section 7.3): a DEM step costs c_g per grain in LAMMPS (measured on
 this size's DEM run: its loop time over its grain-steps); the hybrid's step costs c_g per grain
