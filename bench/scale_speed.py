@@ -20,7 +20,7 @@ two runs' own fluctuation, hgtools.discharge.rate_standard_error; beside it the 
 counted, since a hybrid's grains may carry more or less than their solid mass), the continuum's share
 of the material (1 - the grains' carried mass over the total, f_couple[8], averaged over the
 thermo rows), and the hybrid's time ledger (entries 30-32: coupling, MPM wait, rezones), scaled to
-the time the hybrid ran (running_fraction; docs/design.md 7.3).
+the time the hybrid ran (Outcome.running_share; docs/design.md 7.3).
 
 Cost model (docs/design.md section 7.3): a DEM step costs c_g per grain in LAMMPS (measured on
 this size's DEM run: its loop time over its grain-steps); the hybrid's step costs c_g per grain
@@ -159,21 +159,15 @@ def side_by_side(runs: list[tuple[str, callable, Path | None]]) -> list[tuple]:
     minutes, one at a time (hgtools.interleave: each quantum to the run least far along its record,
     in turns without one), and for each its result, its wall and loop time made the time it ran,
     the CPU seconds its processes used (the steadier measure of the work on a shared machine) and
-    its running fraction (below)."""
+    the share of its loop time in which it ran (Outcome.running_share: it scales the fix's time
+    ledger, which counts the stops)."""
     for _, _, record in runs:
         if record is not None:
             record.unlink(missing_ok=True)    # a former run's record is no measure of this one's progress
     jobs = [Job(name, run, no_progress if record is None else partial(recorded_time, record))
             for name, run, record in runs]
     return [(replace(o.result, wall_time=o.running(o.result.wall_time), loop_time=o.running(o.result.loop_time)),
-             o.cpu_s, running_fraction(o)) for o in interleave(jobs, quantum=QUANTUM, max_stop=MAX_STOP)]
-
-
-def running_fraction(o) -> float:
-    """The share of a job's loop time in which it ran. The fix's time ledger (f_couple[30-32])
-    counts the stops too: a stop falls in whichever ledger term is running, in proportion to its
-    share of the running time, so the ledger times this fraction estimates the running terms."""
-    return o.running(o.result.loop_time) / o.result.loop_time if o.result.loop_time > 0 else 1.0
+             o.cpu_s, o.running_share(o.result.loop_time)) for o in interleave(jobs, quantum=QUANTUM, max_stop=MAX_STOP)]
 
 
 def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim: int = 2, every: int = EVERY,
@@ -190,7 +184,8 @@ def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim:
     return dict(predicted_speedup=dem_loop / sum(model.values()), continuum_share=led["share_mean"],
                 cost_per_grain_step_s=c_g, cost_per_point_substep_s=c_p, cost_per_coupled_grain_exchange_s=c_x,
                 model_s=model, coupling_s=running * led["coupling_s"], mpm_wait_s=running * led["mpm_wait_s"],
-                rezone_s=running * led["rezone_s"], ledger_running_fraction=running, points_max=led["points_max"], share_t=led["share_t"], share=led["share"])
+                rezone_s=running * led["rezone_s"], ledger_running_fraction=running, points_max=led["points_max"],
+                share_t=led["share_t"], share=led["share"])
 
 
 def speeds(dem, hyb, dem_cpu: float, hyb_cpu: float) -> dict:

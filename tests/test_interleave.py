@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from hgtools.interleave import Job, interleave
+from hgtools.interleave import Job, Outcome, interleave
 
 WORKER = """
 import sys, time
@@ -118,3 +118,12 @@ def running(pid: int) -> bool:
     except FileNotFoundError:
         return False
     return stat[stat.rindex(")") + 2] != "Z"
+
+
+def test_running_share_of_an_interval_that_ended_with_the_job():
+    # ran 0-10 s and 30-40 s, stopped between: of its whole 40 s half ran, of its last 15 s two thirds
+    o = Outcome(name="hybrid", result=None, cpu_s=0.0, spans=[(0.0, 10.0), (30.0, 40.0)], end=40.0)
+    assert o.running(40.0) == pytest.approx(20.0)
+    assert o.running_share(40.0) == pytest.approx(0.5)
+    assert o.running_share(15.0) == pytest.approx(10.0 / 15.0)
+    assert o.running_share(0.0) == 1.0

@@ -66,6 +66,12 @@ class Outcome:
         start = self.end - wall
         return sum(max(0.0, b - max(a, start)) for a, b in self.spans if b > start)
 
+    def running_share(self, wall: float) -> float:
+        """The share of such a wall interval in which the job ran. A ledger of wall times the job
+        kept (e.g. the fix's coupling time) counts the stops in whichever term was running, in
+        proportion to the terms' running times, so the ledger times this share estimates them."""
+        return self.running(wall) / wall if wall > 0 else 1.0
+
 
 class Terminated(Exception):
     """SIGTERM or SIGHUP reached the process running interleave(): its jobs were killed."""
