@@ -36,11 +36,14 @@ namespace {
 /// sums, support forces and bookkeeping), generously: for the memory check of the handshake.
 constexpr double kBytesPerNode = 160.0;
 
-std::string format_count(double x) {
+/// `x` to `digits` significant digits (%g).
+std::string format_digits(double x, int digits) {
   char buf[64];
-  std::snprintf(buf, sizeof buf, x >= 100 ? "%.3g" : "%.2g", x);
+  std::snprintf(buf, sizeof buf, "%.*g", digits, x);
   return buf;
 }
+
+std::string format_count(double x) { return format_digits(x, x >= 100 ? 3 : 2); }
 
 /// Parameters of the DEM side this MPM side cannot work with ("" if acceptable).
 std::string check_hello(const coupler::Hello& h) {
@@ -398,19 +401,14 @@ class ServeLedger {
                                               "substeps after the acknowledgement", "rezones", "other"};
     double total = 0;
     for (double t : seconds_) total += t;
-    std::string out = "wall time " + format_seconds(total) + " s:";
+    std::string out = "wall time " + format_digits(total, 3) + " s:";
     for (int i = 0; i < kCount; ++i)
-      out += std::string(i ? "," : "") + " " + names[i] + " " + format_seconds(seconds_[i]);
+      out += std::string(i ? "," : "") + " " + names[i] + " " + format_digits(seconds_[i], 3);
     return out;
   }
 
  private:
   using Clock = std::chrono::steady_clock;
-  static std::string format_seconds(double t) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.3g", t);
-    return buf;
-  }
   Clock::time_point mark_ = Clock::now();
   double seconds_[kCount] = {};
 };

@@ -1,8 +1,8 @@
 // Whole-solver checks: conservation, lithostatic equilibrium, elastic wave speed.
-#include <limits>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <omp.h>
 
 #include <random>
