@@ -231,3 +231,37 @@ def test_rate_standard_error_is_the_spread_of_rates_over_realizations():
     steady = fit_rate(t, each * np.floor(per_s * t), 1e3)
     assert steady["rate"] == pytest.approx(each * per_s, rel=1e-3)
     assert steady["rate_se"] < 0.1 * poisson
+
+
+TIMED_LOG = """fix hybrid/mpm timing breakdown (8 exchanges, 4 rezones):
+Section |  min time  |  avg time  |  max time  |%varavg| %total
+---------------------------------------------------------------
+MPM wait| 0.0019185  | 0.0019484  | 0.0019782  |   0.1 |  2.96
+Coupling| 0.0049024  | 0.0049367  | 0.0049709  |   0.0 |  7.51
+DEM side (LAMMPS timer, avg): Pair 7.6331e-05 Neigh 6.4094e-05 Comm 0.0016406 Modify 0.0051922 s
+MPI task timing breakdown:
+Section |  min time  |  avg time  |  max time  |%varavg| %total
+---------------------------------------------------------------
+Pair    | 3.8088     | 4.3008     | 4.7928     |  23.7 | 15.16
+Other   |            | 0.8905     |            |       |  3.14
+
+fix hybrid/mpm timing breakdown (2 exchanges, 0 rezones):
+Section |  min time  |  avg time  |  max time  |%varavg| %total
+---------------------------------------------------------------
+MPM wait| 1.0        | 2.0        | 3.0        |   0.1 |  2.96
+"""
+
+
+def test_timing_sections_sum_each_tables_mean_over_the_runs():
+    fix = logs.timing_sections(TIMED_LOG, "fix hybrid/mpm timing breakdown")
+    assert fix == pytest.approx({"MPM wait": 2.0019484, "Coupling": 0.0049367})
+    assert logs.timing_sections(TIMED_LOG, "MPI task timing breakdown") == pytest.approx({"Pair": 4.3008, "Other": 0.8905})
+
+
+def test_mpm_ledger_reads_the_last_wall_time_line():
+    text = ("mpm_solver: wall time 9 s: waiting for the DEM host 9, G2P 0\n"
+            "mpm_solver: wall time 155 s: waiting for the DEM host 131, agreement 2.09, G2P 5.91, other 0.0148\n")
+    assert logs.mpm_ledger(text) == {"wall": 155.0, "waiting for the DEM host": 131.0, "agreement": 2.09,
+                                     "G2P": 5.91, "other": 0.0148}
+    with pytest.raises(RuntimeError, match="no 'mpm_solver: wall time' line"):
+        logs.mpm_ledger("mpm_solver: coupled run finished at LAMMPS step 10\n")

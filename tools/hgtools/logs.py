@@ -62,6 +62,40 @@ def loops(text: str, after: str | None = None) -> tuple[int, float]:
     return sum(int(n) for _, n in found), sum(float(t) for t, _ in found)
 
 
+def timing_sections(text: str, header: str) -> dict[str, float]:
+    """The mean ("avg time") seconds of each section of every timing table under a line holding
+    `header` (LAMMPS's "MPI task timing breakdown", the fix's "fix hybrid/mpm timing breakdown"),
+    summed over the log's runs."""
+    sums: dict[str, float] = {}
+    lines_ = text.splitlines()
+    for i, line in enumerate(lines_):
+        if header not in line:
+            continue
+        for row in lines_[i + 3:]:    # the header, the column names, the rule
+            cells = [c.strip() for c in row.split("|")]
+            if len(cells) < 3 or not cells[0]:
+                break
+            sums[cells[0]] = sums.get(cells[0], 0.0) + float(cells[2])    # (Other has only this column)
+    return sums
+
+
+MPM_LEDGER_RE = re.compile(r"^mpm_solver: wall time (\S+) s: (.*)$", re.M)
+
+
+def mpm_ledger(text: str) -> dict[str, float]:
+    """The MPM process's time ledger of a coupled run (its last `mpm_solver: wall time` line):
+    {"wall": total, term: seconds, ...}."""
+    found = MPM_LEDGER_RE.findall(text)
+    if not found:
+        raise RuntimeError("no 'mpm_solver: wall time' line in the output (not a coupled run that finished?)")
+    total, terms = found[-1]
+    out = {"wall": float(total)}
+    for term in terms.split(", "):
+        name, seconds = term.rsplit(" ", 1)
+        out[name] = float(seconds)
+    return out
+
+
 def number(pattern: str, text: str) -> float:
     """The first group of the first (multi-line) match of `pattern` in a log, as a number."""
     m = re.search(pattern, text, re.M)
