@@ -92,7 +92,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 from column_collapse import combine_surfaces, points_surface, surface_error  # noqa: E402
-from dem_collapse import run as collapse, settled as settled_column  # noqa: E402
+from dem_collapse import prepare as prepare_column, run as collapse  # noqa: E402
 import dem3d_silo  # noqa: E402
 from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
 from hgtools.discharge import rate_ratio_se, recorded_time  # noqa: E402
@@ -332,15 +332,16 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
     return rows
 
 
-def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path, touch: bool = False) -> list[dict]:
+def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path, touch: bool = False,
+                 zones: bool = True) -> list[dict]:
     """The 2D column collapse, a = 2, L0 = n d: DEM and the adaptive hybrid from the same cached
     column, to rest (the deck's criterion); error = final surface RMS over H0 (grains and points).
     With `touch` also the hybrid whose continuum may touch the back wall and the floor (htouch 1),
-    in the same minutes against the same DEM run."""
+    in the same minutes against the same DEM run; `zones` False leaves out the hybrid at the fix's
+    zones (with `touch`: the touched one alone against the DEM)."""
     common = dict(aspect=ASPECT, width=n * D, d=D, np_=np_, seed=seed, timeout=4 * 3600)
-    if not settled_column(ASPECT, n * D, D, seed, {}).cached():    # the column first, not timed: both
-        collapse(out=work / f"dem_c{n}", **common)                   # then start from the cached one
-    hybrids = [(f"hybrid_c{n}", {"hybrid": 2, "hcell": hcell}, None)]
+    prepare_column(ASPECT, n * D, D, np_, work / f"prep_c{n}", seed, timeout=common["timeout"])  # not timed
+    hybrids = [(f"hybrid_c{n}", {"hybrid": 2, "hcell": hcell}, None)] if zones else []
     if touch:
         hybrids.append((f"hybrid_c{n}_touch1", {"hybrid": 2, "hcell": hcell, "htouch": 1}, 1))
     timed = side_by_side([("dem", partial(collapse, out=work / f"dem_c{n}", **common), None),
@@ -532,13 +533,17 @@ def main() -> int:
     ap.add_argument("--collapse-touch", action="store_true",
                     help="collapse: also run the hybrid whose continuum may touch the back wall and the floor "
                          "(htouch 1), against the same DEM run")
+    ap.add_argument("--collapse-touch-only", action="store_true",
+                    help="collapse: run the touched hybrid (htouch 1) and not the one at the fix's zones, whose rest "
+                         "is fragile (2.65x the DEM's steps at 100 d on 2026-12-04): the DEM and one hybrid")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of other (scene, size, cores) already in the JSON (each row has its date)")
     ap.add_argument("--pin", action="store_true",
                     help="pin the runs to the first --np cores (DEM and hybrid, MPM process included, share them): "
                          "equal cores even where a waiting process would poll on a free core")
     ap.add_argument("--prepare", action="store_true",
-                    help="run nothing timed: only prepare (and cache) the settled silos of --sizes and --silo3d-sizes, "
+                    help="run nothing timed: only prepare (and cache) the settled silos of --sizes and --silo3d-sizes "
+                         "and the columns of --collapse-sizes, "
                          "e.g. beside other work; a later invocation then times DEM and hybrid alone")
     ap.add_argument("--render", action="store_true",
                     help="run nothing: rewrite the report, the plot and the JSON's layout from the JSON "
@@ -574,7 +579,7 @@ def main() -> int:
                f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
                f"{f' --surface-depths {a.surface_depths}' if a.surface_depths else ''}"
                f"{f' --every {a.every}' if a.every else ''}"
-               f"{' --touch-floor' if a.touch_floor else ''}{' --collapse-touch' if a.collapse_touch else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
+               f"{' --touch-floor' if a.touch_floor else ''}{' --collapse-touch' if a.collapse_touch else ''}{' --collapse-touch-only' if a.collapse_touch_only else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     saved_rows = load(path)[1] if a.keep and path.exists() else []
     saved_date = json.loads(path.read_text())["date"] if saved_rows else stamp
     key = lambda r: (r["scene"], r["width_d"], r.get("height_d"), r["cores"], r.get("pinned", False),  # noqa: E731
@@ -598,13 +603,17 @@ def main() -> int:
             for n in ns:
                 silo.prepare(n, a.work)
                 print(f"{silo.scene} {n} d: settled silo cached", flush=True)
+        for n in collapse_sizes:
+            print(f"collapse_2d {n} d: settled column cached at "
+                  f"{prepare_column(ASPECT, n * D, D, a.np_, a.work / f'prep_c{n}', a.seed, timeout=4 * 3600)}", flush=True)
         return 0
     for n in sizes:
         finish(run_silo(silo2d, n, a.threads, a.work, variants))
     for n in sizes3d:
         finish(run_silo(silo3d, n, a.threads, a.work, variants, a.liggghts))
     for n in collapse_sizes:
-        finish(run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work, a.collapse_touch))
+        finish(run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work, a.collapse_touch or a.collapse_touch_only,
+                            zones=not a.collapse_touch_only))
     return 0
 
 

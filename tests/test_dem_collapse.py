@@ -79,11 +79,16 @@ def test_collapse_stops_at_tmax_and_dumps_the_contact_stress(tmp_path, lmp):
     contacts; mid-flow, damped contacts can pull and the ratio can exceed 1)."""
     sys.path.insert(0, str(REPO / "bench"))
     from deposit_rest import deposit_stress
-    from dem_collapse import FORMS, END_RE, settled
+    from dem_collapse import FORMS, END_RE, prepare, settled
     extra = {"mu": FRICTION, "e": 0.5}
-    run(aspect=2.0, width=0.05, d=0.002, np_=1, out=tmp_path / "cache", lmp=lmp, extra_vars=extra)  # cached column
     cache = settled(2.0, 0.05, 0.002, 12345, {k: str(v) for k, v in extra.items()})
+    assert prepare(aspect=2.0, width=0.05, d=0.002, out=tmp_path / "cache", lmp=lmp, extra_vars=extra) == cache.path
     assert cache.cached()
+    # a column prepared apart (bench/scale_speed.py times only the collapse): the restart, no collapse
+    fresh = prepare(aspect=2.0, width=0.05, d=0.002, out=tmp_path / "fresh", lmp=lmp, extra_vars=extra,
+                    use_cache=False)
+    assert fresh == tmp_path / "fresh" / "settled.restart" and fresh.stat().st_size > 0
+    assert not re.search(END_RE, (tmp_path / "fresh" / "log.lammps").read_text(), re.M)
     common = dict(aspect=2.0, width=0.05, d=0.002, settled=str(cache.path), prep=0, seed=12345, **extra)
 
     early = tmp_path / "early"

@@ -70,6 +70,29 @@ def settled(aspect: float, width: float, d: float, seed: int, extra: dict) -> Se
                          dict(a=aspect, w=width, d=d, seed=seed, **extra), ((DECK, COLLAPSE_STAGE),), "settled.restart")
 
 
+def prepare(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
+            out: str | Path | None = None, seed: int = 12345, lmp: str = "lmp", timeout: float = 3600,
+            extra_vars: dict | None = None, use_cache: bool = True) -> Path:
+    """Builds, pours, settles and trims the column with stock LAMMPS (the deck with collapse 0)
+    and returns its restart file: the cached one (made and stored if missing), or with
+    `use_cache` False a new one in `out`. A caller that times the collapse prepares first, so that
+    no collapse runs untimed."""
+    extra = {k: str(v) for k, v in (extra_vars or {}).items()}
+    cache = settled(aspect, width, d, seed, extra)
+    if use_cache and cache.cached():
+        return cache.path
+    out = workdir(out, f"dem_column_a{aspect:g}")
+    target = out / "settled.restart"
+    variables = dict(aspect=aspect, width=width, d=d, out=str(out), settled=str(target),
+                     prep=1, collapse=0, seed=seed, **extra)
+    FORMS.run("lammps", variables, out / "log.lammps", np_=np_, exe=lmp, timeout=timeout).check(
+        "to prepare the column", target)
+    if not use_cache:
+        return target
+    cache.store(target)
+    return cache.path
+
+
 END_RE = r"^DEM collapse end: t = (\S+) s, grains \d+, KE/grain = (\S+) J \(rest threshold (\S+) J\)"
 
 
@@ -92,15 +115,13 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
     variables = dict(aspect=aspect, width=width, d=d, out=str(out), settled=str(target),
                      prep=int(prep), seed=seed, **extra)
     code = "lammps" if hybrid_vars is None else "hybrid"
-    kw = dict(np_=np_, exe=lmp, timeout=timeout)
     if code == "hybrid" and prep:
         # the settled column first, with stock LAMMPS, then the coupled collapse from it
-        FORMS.run("lammps", dict(variables, collapse=0), out / "log.lammps", **kw).check(
-            "to prepare the column", target)
-        variables["prep"] = 0
-    done = FORMS.run(code, variables, out / "log.lammps", hybrid_vars, **kw)   # hybrid_vars may say hybrid 2
-    log = done.check("in the collapse", out / "final.dump")
-    if prep and use_cache:
+        variables.update(prep=0, settled=str(prepare(aspect, width, d, np_, out, seed, lmp, timeout, extra_vars,
+                                                     use_cache)))
+    done = FORMS.run(code, variables, out / "log.lammps", hybrid_vars, np_=np_, exe=lmp, timeout=timeout)
+    log = done.check("in the collapse", out / "final.dump")   # hybrid_vars may say hybrid 2
+    if variables["prep"] and use_cache:
         cache.store(target)
     res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d)
     m = re.search(END_RE, log, re.M)
