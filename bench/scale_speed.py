@@ -48,6 +48,8 @@ Second scene: the 2D column collapse, a = 2, L0 = n d (input_decks/column_collap
 rest; error = the final surface's RMS over H0, and the runout's relative error (the two in turns of
 5 s, as a collapse has no record of how far it is). --collapse-touch adds the hybrid whose continuum
 may touch the back wall and the floor (deck variable htouch 1), in the same turns against the same DEM.
+--collapse-touch-only runs that one alone against the DEM (the untouched hybrid's rest at 100 d is fragile:
+2.65x the DEM's steps on 2026-12-04, a slow slump of its heap, bench/results/deposit_rest.md).
 
 Silo rows may also run the hybrid at other zone depths (--depths, grain diameters) against the same
 DEM run: the error against wall time as the continuum comes closer to the free surface, the floor
@@ -66,7 +68,7 @@ hybrids, `--sizes 160` then needs about 55 min alone on a fast day (the DEM ~43 
 2026-11-28 (the DEM 99 min, its speed drifting 2x between chunks: compare the model's prediction).
 
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--silo3d-depth 3] [--liggghts]
-                            [--collapse-sizes 50,100,200] [--collapse-touch]
+                            [--collapse-sizes 50,100,200] [--collapse-touch | --collapse-touch-only]
                             [--depths 12,24] [--surface-depths 12] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
        bench/scale_speed.py --prepare --sizes 160   (only the settled silos, cached; not timed)
