@@ -334,6 +334,9 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
     return rows
 
 
+COLLAPSE_TIMEOUT = 4 * 3600    # s, a column's preparation or one of its collapses at 200 d
+
+
 def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path, touch: bool = False,
                  zones: bool = True) -> list[dict]:
     """The 2D column collapse, a = 2, L0 = n d: DEM and the adaptive hybrid from the same cached
@@ -341,7 +344,7 @@ def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Pa
     With `touch` also the hybrid whose continuum may touch the back wall and the floor (htouch 1),
     in the same minutes against the same DEM run; `zones` False leaves out the hybrid at the fix's
     zones (with `touch`: the touched one alone against the DEM)."""
-    common = dict(aspect=ASPECT, width=n * D, d=D, np_=np_, seed=seed, timeout=4 * 3600)
+    common = dict(aspect=ASPECT, width=n * D, d=D, np_=np_, seed=seed, timeout=COLLAPSE_TIMEOUT)
     prepare_column(ASPECT, n * D, D, np_, work / f"prep_c{n}", seed, timeout=common["timeout"])  # not timed
     hybrids = [(f"hybrid_c{n}", {"hybrid": 2, "hcell": hcell}, None)] if zones else []
     if touch:
@@ -532,10 +535,11 @@ def main() -> int:
     ap.add_argument("--touch-floor", action="store_true",
                     help="silo: also run the hybrid with the floor touched (htouch 2: the side walls and the floor, "
                          "the region over the orifice discrete), alone and with each --depths/--surface-depths")
-    ap.add_argument("--collapse-touch", action="store_true",
+    touch = ap.add_mutually_exclusive_group()
+    touch.add_argument("--collapse-touch", action="store_true",
                     help="collapse: also run the hybrid whose continuum may touch the back wall and the floor "
                          "(htouch 1), against the same DEM run")
-    ap.add_argument("--collapse-touch-only", action="store_true",
+    touch.add_argument("--collapse-touch-only", action="store_true",
                     help="collapse: run the touched hybrid (htouch 1) and not the one at the fix's zones, whose rest "
                          "is fragile (2.65x the DEM's steps at 100 d on 2026-12-04): the DEM and one hybrid")
     ap.add_argument("--keep", action="store_true",
@@ -607,7 +611,7 @@ def main() -> int:
                 print(f"{silo.scene} {n} d: settled silo cached", flush=True)
         for n in collapse_sizes:
             print(f"collapse_2d {n} d: settled column cached at "
-                  f"{prepare_column(ASPECT, n * D, D, a.np_, a.work / f'prep_c{n}', a.seed, timeout=4 * 3600)}", flush=True)
+                  f"{prepare_column(ASPECT, n * D, D, a.np_, a.work / f'prep_c{n}', a.seed, timeout=COLLAPSE_TIMEOUT)}", flush=True)
         return 0
     for n in sizes:
         finish(run_silo(silo2d, n, a.threads, a.work, variants))
