@@ -1,0 +1,83 @@
+"""bench/scale_speed.py: what it refuses before running anything, and how its rows at other depths
+reach the JSON, the report and the plot.
+
+The bench itself is not a test (its runs take hours); a refused invocation must fail at once with the
+reason (not after hours of runs), and a row measured at another depth must not replace or hide the
+row at the fix's depth.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "bench"))
+import scale_speed  # noqa: E402
+
+
+def bench(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(REPO / "bench" / "scale_speed.py"), *args],
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_depths_only_without_depths_is_refused_with_the_fix(tmp_path):
+    done = bench("--collapse-sizes", "50", "--collapse-depths-only", "--out", str(tmp_path / "r.md"))
+    assert done.returncode == 2
+    assert "--collapse-depths 9" in done.stderr
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_depths_only_and_touch_only_are_one_choice(tmp_path):
+    done = bench("--collapse-depths", "9", "--collapse-depths-only", "--collapse-touch-only",
+                 "--out", str(tmp_path / "r.md"))
+    assert done.returncode == 2
+    assert "not allowed with argument" in done.stderr
+
+
+def test_render_without_its_json_names_the_missing_file(tmp_path):
+    done = bench("--render", "--out", str(tmp_path / "r.md"))
+    assert done.returncode == 2
+    assert str(tmp_path / "r.json") in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def collapse_row(depth, wall: float, runout: float, touch=1) -> dict:
+    """A collapse row as run_collapse writes it (the fields the report and the plot read)."""
+    return dict(scene="collapse_2d", grains=20759, width_d=100, height_d=200, orifice_d=None, error=0.02,
+                runout_error=runout, steps_ratio=0.96, cores=2, lammps_ranks=2, mpm_threads=2, hcell="0",
+                interleaved=True, speedup=307.0 / wall, cpu_speedup=307.0 / wall, predicted_speedup=300.0 / wall,
+                dem_wall_s=307.0, hybrid_wall_s=wall, continuum_share=0.7, points_max=2000, coupling_s=20.0,
+                mpm_wait_s=5.0, rezone_s=8.0, ledger_running_fraction=0.5, share_t=[0.0, 1.0],
+                share=[0.0, 0.7], touch=touch, depth_d=depth, date="2026-12-06 00:00 UTC", pinned=False)
+
+
+def test_depth_rows_are_kept_apart_and_each_gets_its_report_line(tmp_path):
+    rows = [collapse_row(None, 148.0, 0.055), collapse_row(9.0, 116.0, 0.014), collapse_row(12.0, 140.0, 0.034),
+            collapse_row(None, 760.0, -0.012, touch=None)]
+    path = tmp_path / "scale_speed.json"
+    scale_speed.save(path, rows, date="2026-12-06 00:00 UTC", np=2, command="test")
+    saved = json.loads(path.read_text())
+    # the untouched row at the fix's zones is the issue's row; the touched ones are variants
+    assert [r["touch"] for r in saved["rows"]] == [None]
+    assert sorted((r["depth_d"] or 0) for r in saved["depth_front"]) == [0, 9.0, 12.0]
+    assert scale_speed.load(path)[1] == [rows[3], *rows[:3]]
+    lines = [line for line in scale_speed.table(rows) if line.startswith("| collapse_2d")]
+    assert len(lines) == 4
+    nine = next(line for line in lines if "depth 9" in line)
+    assert "2.65x" in nine and "+1.4%" in nine
+    # the fourth panel draws the touched rows against their wall time, the fix's depth among them
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots()
+    scale_speed.collapse_front(rows, ax)
+    runout_line = ax.lines[0]
+    assert list(runout_line.get_xdata()) == [116.0, 140.0, 148.0]
+    assert list(runout_line.get_ydata()) == pytest.approx([1.4, 3.4, 5.5])
+    labels = sorted(t.get_text() for t in ax.texts)
+    assert labels == ["depth 12 d", "depth 3 cells", "depth 9 d"]
+    plt.close(fig)
