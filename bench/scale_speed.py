@@ -337,41 +337,56 @@ def run_silo(silo: Silo, n: int, threads: int, work: Path, variants: tuple[tuple
 COLLAPSE_TIMEOUT = 4 * 3600    # s, a column's preparation or one of its collapses at 200 d
 
 
+def collapse_hybrids(n: int, hcell: str, zones: bool, touch: bool, depths: tuple = (),
+                     everies: tuple = ()) -> list[tuple[str, dict, int | None, float | None, int | None]]:
+    """The hybrids a collapse row set runs against its DEM: (run name, deck variables, touch, depth in
+    grain diameters, exchange interval), None where the fix's or the deck's default holds. `zones`: the
+    hybrid at the fix's zones; `touch`: the touched one (htouch 1) at the fix's depth; each of `depths`
+    a touched one at that depth below the free surface; each of `everies` a touched one exchanging
+    that often, at each of `depths` (at the fix's depth without them)."""
+    out = [(f"hybrid_c{n}", {"hybrid": 2, "hcell": hcell}, None, None, None)] if zones else []
+    touched = ([(None, None)] if touch else []) + [(x, None) for x in depths]
+    touched += [(x, e) for x in (depths or (None,)) for e in everies]
+    for depth, every in touched:
+        hvars, name = {"hybrid": 2, "hcell": hcell, "htouch": 1}, f"hybrid_c{n}_touch1"
+        if depth is not None:
+            hvars["hdepth"], name = depth * D, f"{name}_depth{depth:g}"
+        if every is not None:    # the deck runs the oracle every 10 exchanges
+            hvars["hevery"], name = every, f"{name}_every{every}"
+        out.append((name, hvars, 1, depth, every))
+    return out
+
+
 def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Path, touch: bool = False,
-                 zones: bool = True, depths: tuple = ()) -> list[dict]:
-    """The 2D column collapse, a = 2, L0 = n d: DEM and the adaptive hybrid from the same cached
-    column, to rest (the deck's criterion); error = final surface RMS over H0 (grains and points).
-    With `touch` also the hybrid whose continuum may touch the back wall and the floor (htouch 1),
-    in the same minutes against the same DEM run; `zones` False leaves out the hybrid at the fix's
-    zones (with `touch`: the touched one alone against the DEM). Each of `depths` (grain diameters)
-    adds a touched hybrid whose oracle keeps that depth below the free surface (deck variable hdepth;
-    the fix's band): the error against wall time as the grains' layer thins."""
+                 zones: bool = True, depths: tuple = (), everies: tuple = ()) -> list[dict]:
+    """The 2D column collapse, a = 2, L0 = n d: DEM and the adaptive hybrids of collapse_hybrids() from
+    the same cached column, to rest (the deck's criterion), in the same minutes; error = final surface
+    RMS over H0 (grains and points). The depths below the free surface (deck variable hdepth; the fix's
+    band) give the error against wall time as the grains' layer thins."""
     common = dict(aspect=ASPECT, width=n * D, d=D, np_=np_, seed=seed, timeout=COLLAPSE_TIMEOUT)
     prepare_column(ASPECT, n * D, D, np_, work / f"prep_c{n}", seed, timeout=common["timeout"])  # not timed
-    hybrids = [(f"hybrid_c{n}", {"hybrid": 2, "hcell": hcell}, None, None)] if zones else []
-    if touch:
-        hybrids.append((f"hybrid_c{n}_touch1", {"hybrid": 2, "hcell": hcell, "htouch": 1}, 1, None))
-    hybrids += [(f"hybrid_c{n}_touch1_depth{x:g}", {"hybrid": 2, "hcell": hcell, "htouch": 1, "hdepth": x * D}, 1, x)
-                for x in depths]
+    hybrids = collapse_hybrids(n, hcell, zones, touch, depths, everies)
     timed = side_by_side([("dem", partial(collapse, out=work / f"dem_c{n}", **common), None),
                           *((name, partial(collapse, out=work / name, hybrid_vars=hvars, **common), None)
                             for name, hvars, *_ in hybrids)])
     (dem, dem_cpu, _), timed = timed[0], timed[1:]
     h0 = ASPECT * n * D
     rows = []
-    for (name, _, touched, depth), (hyb, hyb_cpu, running) in zip(hybrids, timed):
+    for (name, _, touched, depth, every), (hyb, hyb_cpu, running) in zip(hybrids, timed):
         points = load_run(work / name / "frames").frame(-1)["position"]
         surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, n * D / 20, 2 * D))
         row = dict(scene="collapse_2d", grains=dem.grains, width_d=n, height_d=int(ASPECT * n), orifice_d=None,
                    **{key: None for key in VARIANTS}, error=surface_error(surface, np.array(dem.profile).T, h0),
                    runout_error=hyb.runout / dem.runout - 1, steps_ratio=hyb.steps / dem.steps, cores=np_,
                    lammps_ranks=np_, mpm_threads=threads, runout_dem=dem.runout, runout_hybrid=hyb.runout,
+                   dem_steps=dem.steps, hybrid_steps=hyb.steps,
                    hcell=hcell, interleaved=True, **speeds(dem, hyb, dem_cpu, hyb_cpu),
                    **cost_model(dem.loop_time, work / f"dem_c{n}" / "log.lammps", work / name / "log.lammps",
-                                threads, running=running))
-        row["touch"], row["depth_d"] = touched, depth
+                                threads, every=every or EVERY, running=running))
+        row["touch"], row["depth_d"], row["every"] = touched, depth, every
         print(f"collapse L0 = {n} d{'' if touched is None else ', touch 1'}"
-              f"{'' if depth is None else f', depth {depth:g} d'}: {dem.grains} grains, speedup "
+              f"{'' if depth is None else f', depth {depth:g} d'}{'' if every is None else f', every {every}'}: "
+              f"{dem.grains} grains, speedup "
               f"{row['speedup']:.2f}x (model {row['predicted_speedup']:.2f}x), surface {row['error']:.1%} of H0, "
               f"runout {row['runout_error']:+.1%}, steps x{row['steps_ratio']:.2f}, continuum "
               f"{row['continuum_share']:.0%}", flush=True)
@@ -475,27 +490,36 @@ def front(rows: list[dict], ax) -> None:
     ax.legend(fontsize=8)
 
 
+def collapse_label(r: dict) -> str:
+    """A touched collapse hybrid's depth and exchange interval, for the plot."""
+    depth = f"depth {r['depth_d']:g} d" if r.get("depth_d") is not None else "depth 3 cells"
+    return depth + (f", every {r['every']}" if r.get("every") is not None else "")
+
+
 def collapse_front(rows: list[dict], ax) -> None:
-    """Error against wall time for each collapse size run at several depths below the free surface
-    (touched): the DEM at zero error, each hybrid's runout error (circles, joined by depth) and
-    final surface error over H0 (crosses)."""
-    collapse = [r for r in rows if r["scene"] == "collapse_2d" and not r.get("pinned")]
-    for (n, cores) in sorted({(r["width_d"], r["cores"]) for r in collapse if r.get("depth_d") is not None}):
-        mine = sorted((r for r in collapse if r["width_d"] == n and r["cores"] == cores and r.get("touch") is not None),
+    """Error against wall time for the touched collapse hybrids of each invocation that ran several
+    (one DEM run each: its wall time at zero error): each hybrid's runout error (circles, joined in
+    the order of their wall time) and final surface error over H0 (crosses)."""
+    touched = [r for r in rows if r["scene"] == "collapse_2d" and not r.get("pinned") and r.get("touch") is not None]
+    runs = {(r["width_d"], r["cores"], r.get("date", "")) for r in touched}
+    for (n, cores, date) in sorted(runs):
+        mine = sorted((r for r in touched if (r["width_d"], r["cores"], r.get("date", "")) == (n, cores, date)),
                       key=lambda r: r["hybrid_wall_s"])
+        if len(mine) < 2:
+            continue
         wall = [r["hybrid_wall_s"] for r in mine]
         line, = ax.plot(wall, [100 * abs(r["runout_error"]) for r in mine], "o-",
-                        label=f"hybrid (touched), L0 = {n} d, {cores} core(s): runout")
+                        label=f"hybrid (touched), L0 = {n} d, {cores} core(s), {date.removesuffix(' UTC')}: runout")
         ax.plot(wall, [100 * r["error"] for r in mine], "x", color=line.get_color(), label="final surface / H0")
         ax.plot([mine[0]["dem_wall_s"]], [0.0], "s", color=line.get_color(), label=f"LAMMPS DEM, L0 = {n} d")
         for r in mine:
-            ax.annotate("depth " + (f"{r['depth_d']:g} d" if r.get("depth_d") is not None else "3 cells"),
-                        (r["hybrid_wall_s"], 100 * abs(r["runout_error"])), textcoords="offset points",
-                        xytext=(4, 4), fontsize=7)
-    ax.set(xscale="log", xlabel="wall time, s", ylabel="error (%)", title="collapse: depth below the free surface")
+            ax.annotate(collapse_label(r), (r["hybrid_wall_s"], 100 * abs(r["runout_error"])),
+                        textcoords="offset points", xytext=(4, 4), fontsize=7)
+    ax.set(xscale="log", xlabel="wall time, s", ylabel="error (%)",
+           title="collapse: depth below the free surface, exchange interval")
     ax.title.set_fontsize(9)
     if ax.lines:
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=7)
 
 
 def load(path: Path) -> tuple[dict, list[dict]]:
@@ -572,12 +596,16 @@ def main() -> int:
                     help="collapse: run the touched hybrid (htouch 1) and not the one at the fix's zones, whose rest "
                          "is fragile (2.65x the DEM's steps at 100 d on 2026-12-04): the DEM and one hybrid")
     touch.add_argument("--collapse-depths-only", action="store_true",
-                    help="collapse: run only the touched hybrids at --collapse-depths against the DEM (neither the "
-                         "one at the fix's zones nor the touched one at the fix's depth)")
+                    help="collapse: run only the touched hybrids of --collapse-depths and --collapse-every against "
+                         "the DEM (neither the one at the fix's zones nor the touched one at the fix's depth)")
     ap.add_argument("--collapse-depths", default="",
                     help="collapse: also run the touched hybrid (htouch 1) with these depths below the free surface, "
                          "grain diameters (e.g. '12,9'; the fix's is 3 cells), against the same DEM run: the error "
                          "against wall time")
+    ap.add_argument("--collapse-every", default="",
+                    help="collapse: also run the touched hybrid exchanging every this many DEM steps (e.g. '20,40'; "
+                         "the deck's 10, its oracle every 10 exchanges) at each of --collapse-depths (at the fix's "
+                         "depth without them), against the same DEM run")
     ap.add_argument("--keep", action="store_true",
                     help="keep the rows of other (scene, size, cores) already in the JSON (each row has its date)")
     ap.add_argument("--pin", action="store_true",
@@ -595,8 +623,17 @@ def main() -> int:
     a = ap.parse_args()
     if not a.silo3d_depth > 0:
         ap.error(f"--silo3d-depth is the fill height over the width and must be > 0, not {a.silo3d_depth:g}")
-    if a.collapse_depths_only and not a.collapse_depths:
-        ap.error("--collapse-depths-only runs the hybrids at --collapse-depths: give them, e.g. --collapse-depths 9")
+    try:
+        collapse_depths = tuple(float(x) for x in a.collapse_depths.split(",") if x)
+        collapse_everies = tuple(int(x) for x in a.collapse_every.split(",") if x)
+    except ValueError as e:
+        ap.error(f"--collapse-depths takes grain diameters and --collapse-every step counts (the collapse deck "
+                 f"sets its oracle to 10 exchanges and has no every auto), comma-separated: {e}")
+    if not all(x > 0 for x in collapse_depths + collapse_everies):
+        ap.error("--collapse-depths and --collapse-every must be positive")
+    if a.collapse_depths_only and not (a.collapse_depths or a.collapse_every):
+        ap.error("--collapse-depths-only runs the hybrids at --collapse-depths or --collapse-every: give them, "
+                 "e.g. --collapse-depths 9")
     if a.out.is_dir() or a.out.suffix != ".md":
         ap.error(f"--out is the report's file (its JSON and plot go beside it), e.g. {a.out / 'scale_speed.md'}, "
                  f"not {a.out}")
@@ -626,7 +663,7 @@ def main() -> int:
                f"'{a.collapse_sizes}' --tdis {a.tdis} --hcell {a.hcell}{f' --depths {a.depths}' if a.depths else ''}"
                f"{f' --surface-depths {a.surface_depths}' if a.surface_depths else ''}"
                f"{f' --every {a.every}' if a.every else ''}"
-               f"{' --touch-floor' if a.touch_floor else ''}{' --collapse-touch' if a.collapse_touch else ''}{' --collapse-touch-only' if a.collapse_touch_only else ''}{' --collapse-depths-only' if a.collapse_depths_only else ''}{f' --collapse-depths {a.collapse_depths}' if a.collapse_depths else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
+               f"{' --touch-floor' if a.touch_floor else ''}{' --collapse-touch' if a.collapse_touch else ''}{' --collapse-touch-only' if a.collapse_touch_only else ''}{' --collapse-depths-only' if a.collapse_depths_only else ''}{f' --collapse-depths {a.collapse_depths}' if a.collapse_depths else ''}{f' --collapse-every {a.collapse_every}' if a.collapse_every else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     saved_rows = load(path)[1] if a.keep and path.exists() else []
     saved_date = json.loads(path.read_text())["date"] if saved_rows else stamp
     key = lambda r: (r["scene"], r["width_d"], r.get("height_d"), r["cores"], r.get("pinned", False),  # noqa: E731
@@ -660,8 +697,8 @@ def main() -> int:
         finish(run_silo(silo3d, n, a.threads, a.work, variants, a.liggghts))
     for n in collapse_sizes:
         finish(run_collapse(n, a.np_, a.seed, a.hcell, a.threads, a.work, a.collapse_touch or a.collapse_touch_only,
-                            zones=not (a.collapse_touch_only or a.collapse_depths_only),
-                            depths=tuple(float(x) for x in a.collapse_depths.split(",") if x)))
+                            zones=not (a.collapse_touch_only or a.collapse_depths_only), depths=collapse_depths,
+                            everies=collapse_everies))
     return 0
 
 

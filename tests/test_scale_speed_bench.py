@@ -38,6 +38,16 @@ def test_depths_only_and_touch_only_are_one_choice(tmp_path):
     assert "not allowed with argument" in done.stderr
 
 
+@pytest.mark.parametrize("flag, value", [("--collapse-every", "auto"), ("--collapse-every", "0"),
+                                         ("--collapse-depths", "9d")])
+def test_a_bad_depth_or_interval_is_refused_before_any_run(tmp_path, flag, value):
+    done = bench("--sizes", "", "--silo3d-sizes", "", "--collapse-sizes", "50", flag, value,
+                 "--out", str(tmp_path / "r.md"))
+    assert done.returncode == 2
+    assert "--collapse-every" in done.stderr and "--collapse-depths" in done.stderr
+    assert not (tmp_path / "r.json").exists()
+
+
 def test_render_without_its_json_names_the_missing_file(tmp_path):
     done = bench("--render", "--out", str(tmp_path / "r.md"))
     assert done.returncode == 2
@@ -81,3 +91,37 @@ def test_depth_rows_are_kept_apart_and_each_gets_its_report_line(tmp_path):
     labels = sorted(t.get_text() for t in ax.texts)
     assert labels == ["depth 12 d", "depth 3 cells", "depth 9 d"]
     plt.close(fig)
+
+
+def test_collapse_hybrids_combine_depths_and_exchange_intervals():
+    d = scale_speed.D
+    runs = scale_speed.collapse_hybrids(100, "0", zones=False, touch=False, depths=(9.0, 12.0), everies=(20,))
+    assert [name for name, *_ in runs] == ["hybrid_c100_touch1_depth9", "hybrid_c100_touch1_depth12",
+                                           "hybrid_c100_touch1_depth9_every20", "hybrid_c100_touch1_depth12_every20"]
+    name, hvars, touch, depth, every = runs[2]
+    assert hvars == {"hybrid": 2, "hcell": "0", "htouch": 1, "hdepth": pytest.approx(9 * d), "hevery": 20}
+    assert (touch, depth, every) == (1, 9.0, 20)
+    # without depths the intervals run at the fix's depth; zones and touch add the two defaults first
+    runs = scale_speed.collapse_hybrids(50, "0", zones=True, touch=True, everies=(40,))
+    assert [(name, hvars.get("htouch"), hvars.get("hdepth"), hvars.get("hevery")) for name, hvars, *_ in runs] == [
+        ("hybrid_c50", None, None, None), ("hybrid_c50_touch1", 1, None, None),
+        ("hybrid_c50_touch1_every40", 1, None, 40)]
+
+
+def test_the_front_joins_only_the_rows_of_one_dem_run(tmp_path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    today = [collapse_row(9.0, 116.0, 0.014), dict(collapse_row(9.0, 100.0, 0.02), every=20)]
+    other_day = [collapse_row(None, 148.0, 0.055), collapse_row(12.0, 140.0, 0.034)]
+    for r in other_day:
+        r["date"], r["dem_wall_s"] = "2026-12-05 14:47 UTC", 299.0
+    fig, ax = plt.subplots()
+    scale_speed.collapse_front(today + other_day, ax)
+    runout_lines = [line for line in ax.lines if line.get_marker() == "o"]
+    assert sorted(list(line.get_xdata()) for line in runout_lines) == [[100.0, 116.0], [140.0, 148.0]]
+    dem_marks = sorted(line.get_xdata()[0] for line in ax.lines if line.get_marker() == "s")
+    assert dem_marks == [299.0, 307.0]
+    assert "depth 9 d, every 20" in [t.get_text() for t in ax.texts]
+    plt.close(fig)
+    assert "exchange every 20" in next(line for line in scale_speed.table(today) if "every" in line)
