@@ -119,3 +119,10 @@ def test_collapse_stops_at_tmax_and_dumps_the_contact_stress(tmp_path, lmp):
     ratios = deposit_stress(rest / "final_stress.dump", 6 * 0.002)
     assert ratios.size >= 4
     assert np.all((ratios >= 0) & (ratios < 1)), ratios
+
+
+def test_a_column_has_one_cache_entry_whatever_the_type_of_its_numbers():
+    # bench/scale_speed.py names the aspect 2 and the width n * d; this driver 2.0 and 0.2: one column
+    from dem_collapse import settled
+    assert settled(2, 100 * 0.002, 0.002, 12345, {}).path == settled(2.0, 0.2, 0.002, 12345, {}).path
+    assert settled(2.0, 0.2, 0.002, 12345, {}).path != settled(2.0, 0.2, 0.002, 2, {}).path

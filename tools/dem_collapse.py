@@ -66,8 +66,11 @@ class DemResult(Deposit):
 
 
 def settled(aspect: float, width: float, d: float, seed: int, extra: dict) -> Settled:
+    # the key holds the values as floats: an aspect of 2 (bench/scale_speed.py) and of 2.0 (this
+    # driver) are one column, prepared once
     return Settled.entry("dem_column", f"a{aspect:g}_w{width:g}_d{d:g}_s{seed}",
-                         dict(a=aspect, w=width, d=d, seed=seed, **extra), ((DECK, COLLAPSE_STAGE),), "settled.restart")
+                         dict(a=float(aspect), w=float(width), d=float(d), seed=int(seed), **extra),
+                         ((DECK, COLLAPSE_STAGE),), "settled.restart")
 
 
 def prepare(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
