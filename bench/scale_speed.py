@@ -519,7 +519,7 @@ def collapse_front(rows: list[dict], ax) -> None:
            title="collapse: depth below the free surface, exchange interval")
     ax.title.set_fontsize(9)
     if ax.lines:
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="center right")
 
 
 def load(path: Path) -> tuple[dict, list[dict]]:
