@@ -68,8 +68,8 @@ hybrids, `--sizes 160` then needs about 55 min alone on a fast day (the DEM ~43 
 2026-11-28 (the DEM 99 min, its speed drifting 2x between chunks: compare the model's prediction).
 
 Usage: bench/scale_speed.py [--np 2] [--threads 2] [--sizes 40,90,160] [--silo3d-sizes 12,18,26] [--silo3d-depth 3] [--liggghts]
-                            [--collapse-sizes 50,100,200] [--collapse-touch | --collapse-touch-only]
-                            [--depths 12,24] [--surface-depths 12] [--keep]
+                            [--collapse-sizes 50,100,200] [--collapse-touch | --collapse-touch-only | --collapse-depths-only]
+                            [--collapse-depths 9,12] [--collapse-every 20,40] [--depths 12,24] [--surface-depths 12] [--keep]
        bench/scale_speed.py --render     (the report and plot again from the JSON)
        bench/scale_speed.py --prepare --sizes 160   (only the settled silos, cached; not timed)
 Writes bench/results/scale_speed.json (a list `rows`, one per scene, size and cores at the fix's zones,
