@@ -491,9 +491,9 @@ def front(rows: list[dict], ax) -> None:
 
 
 def collapse_label(r: dict) -> str:
-    """A touched collapse hybrid's depth and exchange interval, for the plot."""
-    depth = f"depth {r['depth_d']:g} d" if r.get("depth_d") is not None else "depth 3 cells"
-    return depth + (f", every {r['every']}" if r.get("every") is not None else "")
+    """A touched collapse hybrid's variants for the plot (all are touched), the fix's depth named."""
+    label = variant_label(dict(r, touch=None))
+    return label if r.get("depth_d") is not None else ", ".join(filter(None, ("depth 3 cells", label)))
 
 
 def collapse_front(rows: list[dict], ax) -> None:
@@ -625,7 +625,7 @@ def main() -> int:
         ap.error(f"--silo3d-depth is the fill height over the width and must be > 0, not {a.silo3d_depth:g}")
     try:
         collapse_depths = tuple(float(x) for x in a.collapse_depths.split(",") if x)
-        collapse_everies = tuple(int(x) for x in a.collapse_every.split(",") if x)
+        collapse_everies = tuple(parse_sizes(a.collapse_every))
     except ValueError as e:
         ap.error(f"--collapse-depths takes grain diameters and --collapse-every step counts (the collapse deck "
                  f"sets its oracle to 10 exchanges and has no every auto), comma-separated: {e}")

@@ -122,6 +122,6 @@ def test_the_front_joins_only_the_rows_of_one_dem_run(tmp_path):
     assert sorted(list(line.get_xdata()) for line in runout_lines) == [[100.0, 116.0], [140.0, 148.0]]
     dem_marks = sorted(line.get_xdata()[0] for line in ax.lines if line.get_marker() == "s")
     assert dem_marks == [299.0, 307.0]
-    assert "depth 9 d, every 20" in [t.get_text() for t in ax.texts]
+    assert "depth 9 d, exchange every 20" in [t.get_text() for t in ax.texts]
     plt.close(fig)
     assert "exchange every 20" in next(line for line in scale_speed.table(today) if "every" in line)
