@@ -550,9 +550,22 @@ def write(rows: list[dict], command: str, stamp: str, out: Path) -> None:
     write_report(out, "\n".join(text))
 
 
-def parse_sizes(text: str) -> list[int]:
-    """Sizes in grain diameters from a comma list ('' = none)."""
-    return [int(n) for n in text.split(",") if n]
+def parse_list(text: str, kind=int, auto: bool = False) -> list:
+    """Positive numbers (`kind`) from a comma list ('' = none), and 'auto' where `auto` allows it;
+    ValueError names the value refused."""
+    values = []
+    for x in (t.strip() for t in text.split(",")):
+        if not x or (auto and x == "auto"):
+            values += [x] if x else []
+            continue
+        try:
+            v = kind(x)
+        except ValueError:
+            raise ValueError(f"'{x}' is not {'a whole number' if kind is int else 'a number'}") from None
+        if not v > 0:
+            raise ValueError(f"'{x}' is not positive")
+        values.append(v)
+    return values
 
 
 def main() -> int:
@@ -623,14 +636,23 @@ def main() -> int:
     a = ap.parse_args()
     if not a.silo3d_depth > 0:
         ap.error(f"--silo3d-depth is the fill height over the width and must be > 0, not {a.silo3d_depth:g}")
-    try:
-        collapse_depths = tuple(float(x) for x in a.collapse_depths.split(",") if x)
-        collapse_everies = tuple(parse_sizes(a.collapse_every))
-    except ValueError as e:
-        ap.error(f"--collapse-depths takes grain diameters and --collapse-every step counts (the collapse deck "
-                 f"sets its oracle to 10 exchanges and has no every auto), comma-separated: {e}")
-    if not all(x > 0 for x in collapse_depths + collapse_everies):
-        ap.error("--collapse-depths and --collapse-every must be positive")
+    lists = {}    # every comma option, refused by name before anything runs
+    for option, text, kind, auto, what in (
+            ("--sizes", a.sizes, int, False, "silo widths in grain diameters"),
+            ("--silo3d-sizes", a.silo3d_sizes, int, False, "3D silo widths in grain diameters"),
+            ("--collapse-sizes", a.collapse_sizes, int, False, "collapse widths L0 in grain diameters"),
+            ("--depths", a.depths, float, False, "zone depths in grain diameters"),
+            ("--surface-depths", a.surface_depths, float, False, "depths below the free surface in grain diameters"),
+            ("--every", a.every, int, True, "step counts or auto"),
+            ("--collapse-depths", a.collapse_depths, float, False,
+             "grain diameters (--collapse-every takes step counts)"),
+            ("--collapse-every", a.collapse_every, int, False, "step counts (the collapse deck sets its oracle to 10 "
+             "exchanges and has no every auto; --collapse-depths takes grain diameters)")):
+        try:
+            lists[option] = parse_list(text, kind, auto)
+        except ValueError as e:
+            ap.error(f"{option} takes {what}, comma-separated: {e}")
+    collapse_depths, collapse_everies = tuple(lists["--collapse-depths"]), tuple(lists["--collapse-every"])
     if a.collapse_depths_only and not (a.collapse_depths or a.collapse_every):
         ap.error("--collapse-depths-only runs the hybrids at --collapse-depths or --collapse-every: give them, "
                  "e.g. --collapse-depths 9")
@@ -651,10 +673,11 @@ def main() -> int:
     if a.pin:    # inherited by every run this starts; Open MPI must not rebind its processes
         os.sched_setaffinity(0, set(range(a.np_)))
         os.environ["OMPI_MCA_hwloc_base_binding_policy"] = "none"
-    sizes, sizes3d, collapse_sizes = (parse_sizes(x) for x in (a.sizes, a.silo3d_sizes, a.collapse_sizes))
-    variants = tuple(((key, x if key == "every" and x == "auto" else float(x)),)    # the fix's every auto
-                     for key, values in (("depth_d", a.depths), ("surface_depth_d", a.surface_depths), ("every", a.every))
-                     for x in values.split(",") if x)
+    sizes, sizes3d, collapse_sizes = (lists[o] for o in ("--sizes", "--silo3d-sizes", "--collapse-sizes"))
+    variants = tuple(((key, x if x == "auto" else float(x)),)    # the fix's every auto
+                     for key, option in (("depth_d", "--depths"), ("surface_depth_d", "--surface-depths"),
+                                         ("every", "--every"))
+                     for x in lists[option])
     if a.touch_floor:    # the floor touched, alone and with each of the other variants
         variants = variants + ((("touch", 2),),) + tuple((("touch", 2), *v) for v in variants)
     command = (f"bench/scale_speed.py --np {a.np_} --threads {a.threads} --sizes '{a.sizes}' --silo3d-sizes "

@@ -103,9 +103,34 @@ def test_kill_9_of_either_side_stops_both_within_10_s_with_files_readable(hybrid
     assert row["seconds_to_exit"] <= fc.KILL_LIMIT, row
     assert "exited on signal 9 (Killed)" in row["message"], row
     # the newest restart with its MPM state, or (the MPM process killed between the two writes)
-    # without it and the previous restart's state readable
-    assert re.search(r"restart\.\d+\.bin ok; (its|not written; restart\.\d+\.bin's) \.mpm\.h5 ok; points\.h5 ok",
-                     row["message"]), row
+    # without it and the previous restart's state readable, or (LAMMPS killed while it wrote
+    # the newest) the one before whole with its state
+    assert re.search(r"(restart\.\d+\.bin cut short by the kill; )?restart\.\d+\.bin ok; "
+                     r"(its|not written; restart\.\d+\.bin's) \.mpm\.h5 ok; points\.h5 ok", row["message"]), row
+
+
+def test_a_restart_cut_short_by_the_kill_passes_only_when_the_one_before_reads_back(hybrid_programs, tmp_path):
+    """LAMMPS writes restart files in place, so a kill -9 while it writes one leaves it cut short (a
+    kill trial once landed there); the campaign then asks for the restart before it, whole."""
+    deck = tmp_path / "write.lmp"
+    deck.write_text("region box block 0 1 0 1 0 1\ncreate_box 1 box\ncreate_atoms 1 single 0.5 0.5 0.5\n"
+                    "mass 1 1.0\nwrite_restart restart.100.bin\nwrite_restart restart.200.bin\n")
+    subprocess.run([hybrid_programs["lmp_hybrid"], "-in", str(deck), "-log", "none", "-screen", "none"],
+                   cwd=tmp_path, check=True, timeout=60, env=fc.job_env("test-restarts"))
+    ctx = fc.Ctx(tmp_path, hybrid_programs, tmp_path)
+    ok, notes = fc.readable_files(ctx)
+    assert ok and notes.startswith("restart.200.bin ok;"), notes
+
+    def cut(name):
+        f = tmp_path / name
+        f.write_bytes(f.read_bytes()[: f.stat().st_size // 2])
+
+    cut("restart.200.bin")
+    ok, notes = fc.readable_files(ctx)
+    assert ok and notes.startswith("restart.200.bin cut short by the kill; restart.100.bin ok;"), notes
+    cut("restart.100.bin")
+    ok, notes = fc.readable_files(ctx)
+    assert not ok and notes.startswith("restart.200.bin unreadable"), notes
 
 
 # ------------------------------------------------------------------ the committed table

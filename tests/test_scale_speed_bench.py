@@ -48,6 +48,26 @@ def test_a_bad_depth_or_interval_is_refused_before_any_run(tmp_path, flag, value
     assert not (tmp_path / "r.json").exists()
 
 
+@pytest.mark.parametrize("flag, value, reason", [("--depths", "12d", "'12d' is not a number"),
+                                                 ("--surface-depths", "-3", "'-3' is not positive"),
+                                                 ("--every", "often", "'often' is not a whole number"),
+                                                 ("--sizes", "40,9.5", "'9.5' is not a whole number")])
+def test_a_bad_silo_value_is_refused_by_its_option(tmp_path, flag, value, reason):
+    done = bench("--silo3d-sizes", "", "--collapse-sizes", "", flag, value, "--out", str(tmp_path / "r.md"))
+    assert done.returncode == 2
+    assert f"{flag} takes" in done.stderr and reason in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_lists_keep_auto_only_where_it_is_allowed():
+    assert scale_speed.parse_list("20, auto,40", int, auto=True) == [20, "auto", 40]
+    assert scale_speed.parse_list("9,12.5", float) == [9.0, 12.5]
+    assert scale_speed.parse_list("") == []
+    with pytest.raises(ValueError, match="'auto' is not a whole number"):
+        scale_speed.parse_list("auto", int)
+
+
 def test_render_without_its_json_names_the_missing_file(tmp_path):
     done = bench("--render", "--out", str(tmp_path / "r.md"))
     assert done.returncode == 2

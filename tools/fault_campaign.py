@@ -694,6 +694,15 @@ def run_command(case: Case, ctx: Ctx, cmd: list[str], env: dict, marker: str, ti
     return {"outcome": outcome, "seconds_to_exit": round(elapsed, 2), "exit_status": rc, "message": message}
 
 
+def reads_back(ctx: Ctx, restart: Path) -> bool:
+    """Whether LAMMPS (the coupled build) reads the restart file back without error."""
+    check = ctx.dir / "read_back.lmp"
+    check.write_text(f"read_restart {restart}\n")
+    proc = subprocess.run([ctx.programs["lmp_hybrid"], "-in", str(check), "-log", "none", "-screen", "none"],
+                          cwd=ctx.dir, capture_output=True, text=True, timeout=60, env=job_env("readback"))
+    return proc.returncode == 0
+
+
 def readable_files(ctx: Ctx) -> tuple[bool, str]:
     """The last restart file (read back by LAMMPS), its MPM state and the HDF5 output (h5py)."""
     import h5py
@@ -702,22 +711,23 @@ def readable_files(ctx: Ctx) -> tuple[bool, str]:
     restarts = sorted(ctx.dir.glob("restart.*.bin"), key=lambda p: int(p.name.split(".")[1]))
     if restarts:
         last = restarts[-1]
-        check = ctx.dir / "read_back.lmp"
-        check.write_text(f"read_restart {last}\n")
-        proc = subprocess.run([ctx.programs["lmp_hybrid"], "-in", str(check), "-log", "none", "-screen", "none"],
-                              cwd=ctx.dir, capture_output=True, text=True, timeout=60, env=job_env("readback"))
-        if proc.returncode != 0:
+        if reads_back(ctx, last):
+            notes.append(f"{last.name} ok")
+        elif len(restarts) > 1 and reads_back(ctx, restarts[-2]):
+            # LAMMPS writes a restart file in place: a kill while it writes one leaves it cut
+            # short, and a run continues from the one before (which must then be whole).
+            notes.append(f"{last.name} cut short by the kill; {restarts[-2].name} ok")
+            restarts = restarts[:-1]
+        else:
             ok = False
             notes.append(f"{last.name} unreadable")
-        else:
-            notes.append(f"{last.name} ok")
         # The MPM process saves its state after LAMMPS has written the restart file: a kill
         # between the two leaves the newest restart without one, and the newest complete pair
         # is the previous restart (a run continues from that; mpm_state names the file).
         paired = [r for r in restarts if Path(str(r) + ".mpm.h5").exists()]
         if paired:
             state = Path(str(paired[-1]) + ".mpm.h5")
-            whose = "its" if paired[-1] == last else f"not written; {paired[-1].name}'s"
+            whose = "its" if paired[-1] == restarts[-1] else f"not written; {paired[-1].name}'s"
             try:
                 with h5py.File(state, "r") as f:
                     list(f.keys())
