@@ -497,16 +497,14 @@ def collapse_label(r: dict) -> str:
 
 
 def collapse_front(rows: list[dict], ax) -> None:
-    """Error against wall time for the touched collapse hybrids of each invocation that ran several
-    (one DEM run each: its wall time at zero error): each hybrid's runout error (circles, joined in
-    the order of their wall time) and final surface error over H0 (crosses)."""
+    """Error against wall time for the touched collapse hybrids of each invocation (one DEM run each:
+    its wall time at zero error; one hybrid is a point against it): each hybrid's runout error
+    (circles, joined in the order of their wall time) and final surface error over H0 (crosses)."""
     touched = [r for r in rows if r["scene"] == "collapse_2d" and not r.get("pinned") and r.get("touch") is not None]
     runs = {(r["width_d"], r["cores"], r.get("date", "")) for r in touched}
     for (n, cores, date) in sorted(runs):
         mine = sorted((r for r in touched if (r["width_d"], r["cores"], r.get("date", "")) == (n, cores, date)),
                       key=lambda r: r["hybrid_wall_s"])
-        if len(mine) < 2:
-            continue
         wall = [r["hybrid_wall_s"] for r in mine]
         line, = ax.plot(wall, [100 * abs(r["runout_error"]) for r in mine], "o-",
                         label=f"hybrid (touched), L0 = {n} d, {cores} core(s), {date.removesuffix(' UTC')}: runout")

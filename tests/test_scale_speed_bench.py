@@ -136,12 +136,13 @@ def test_the_front_joins_only_the_rows_of_one_dem_run(tmp_path):
     other_day = [collapse_row(None, 148.0, 0.055), collapse_row(12.0, 140.0, 0.034)]
     for r in other_day:
         r["date"], r["dem_wall_s"] = "2026-12-05 14:47 UTC", 299.0
+    alone = [dict(collapse_row(9.0, 746.0, 0.016), width_d=200, dem_wall_s=3336.0)]    # one hybrid: a point
     fig, ax = plt.subplots()
-    scale_speed.collapse_front(today + other_day, ax)
+    scale_speed.collapse_front(today + other_day + alone, ax)
     runout_lines = [line for line in ax.lines if line.get_marker() == "o"]
-    assert sorted(list(line.get_xdata()) for line in runout_lines) == [[100.0, 116.0], [140.0, 148.0]]
+    assert sorted(list(line.get_xdata()) for line in runout_lines) == [[100.0, 116.0], [140.0, 148.0], [746.0]]
     dem_marks = sorted(line.get_xdata()[0] for line in ax.lines if line.get_marker() == "s")
-    assert dem_marks == [299.0, 307.0]
+    assert dem_marks == [299.0, 307.0, 3336.0]
     assert "depth 9 d, exchange every 20" in [t.get_text() for t in ax.texts]
     plt.close(fig)
     assert "exchange every 20" in next(line for line in scale_speed.table(today) if "every" in line)
