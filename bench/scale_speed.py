@@ -553,8 +553,10 @@ def parse_list(text: str, kind=int, auto: bool = False) -> list:
     ValueError names the value refused."""
     values = []
     for x in (t.strip() for t in text.split(",")):
-        if not x or (auto and x == "auto"):
-            values += [x] if x else []
+        if not x:
+            continue
+        if auto and x == "auto":
+            values.append(x)
             continue
         try:
             v = kind(x)
