@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <set>
 
 #include "coupler/conversion.hpp"
@@ -68,13 +69,30 @@ template <int D>
 std::vector<Obstacle<D>> obstacles_near(const GridGeometry<D> &grid, const DemGrains &g,
                                         const std::set<std::uint64_t> &candidate_cells, double distance,
                                         MPI_Comm comm) {
+  // each cell's distance (cells along the farthest axis) to the nearest candidate cell, up to the
+  // farthest reach of a grain here: one look-up per grain (the grains of a large scene are many,
+  // the cells making grains at a rezone few)
+  double largest_radius = 0;
+  for (int i = 0; i < g.n; i++) largest_radius = std::max(largest_radius, g.radius[i]);
+  const int farthest = static_cast<int>(std::ceil((largest_radius + distance) / grid.dx));
+  std::vector<int> cells_away(num_cells<D>(grid), std::numeric_limits<int>::max());
+  for (std::uint64_t candidate : candidate_cells) {
+    const Eigen::Matrix<int, D, 1> c = cell_coords<D>(grid, candidate);
+    for_each_cell_within<D>(grid, c, farthest, [&](std::uint64_t cell) {
+      const int away = (cell_coords<D>(grid, cell) - c).cwiseAbs().maxCoeff();
+      cells_away[cell] = std::min(cells_away[cell], away);
+    });
+  }
   std::vector<double> mine;
   for (int i = 0; i < g.n; i++) {
     const Vec<D> xi = Eigen::Map<const Vec<D>>(g.x[i]);
     const int reach = static_cast<int>(std::ceil((g.radius[i] + distance) / grid.dx));
+    const Eigen::Matrix<int, D, 1> c = cell_of<D>(grid, xi);
     bool near = false;
-    for_each_cell_within<D>(grid, cell_of<D>(grid, xi), reach,
-                            [&](std::uint64_t cell) { near = near || candidate_cells.count(cell) > 0; });
+    if (cell_on_grid<D>(grid, c)) near = cells_away[cell_index<D>(grid, c)] <= reach;
+    else    // off the grid (a grain outside the box): the cells within reach that are on it
+      for_each_cell_within<D>(grid, c, reach,
+                              [&](std::uint64_t cell) { near = near || candidate_cells.count(cell) > 0; });
     if (!near) continue;
     mine.insert(mine.end(), xi.data(), xi.data() + D);
     mine.push_back(g.radius[i]);

@@ -160,46 +160,37 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
                         std::to_string(static_cast<int>(given[c])) + " (0 discrete, 1 hybrid, 2 continuum)");
     next = given;
   } else {
-    std::vector<double> shear;
+    coupler::OracleInputs<D> in;
     if (os.max_shear_rate > 0) {
       // the fastest shearing point of each cell (grains' velocities are too noisy for a shear
       // rate per cell: a cell turned discrete stays so until its zone wants points again)
-      shear.assign(n, 0.0);
+      in.shear_rate.assign(n, 0.0);
       for (std::size_t p = 0; p < pts.size(); ++p)
-        shear[point_cell[p]] = std::max(shear[point_cell[p]], coupler::shear_rate<D>(pts.C[p]));
+        in.shear_rate[point_cell[p]] = std::max(in.shear_rate[point_cell[p]], coupler::shear_rate<D>(pts.C[p]));
     }
     // container faces: beyond a discrete boundary, a surface of the material; beyond a face the
     // continuum may touch, solid (material that stays discrete: coupler/oracle.hpp, box_cells)
-    coupler::BoxCells box = coupler::box_cells<D>(geometry, Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
-                                                  Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>(),
-                                                  cs.touched_faces);
+    in.container_lo = Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>();
+    in.container_hi = Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>();
+    in.touched_faces = cs.touched_faces;
     // the fix's discrete regions (an orifice, an intruder) are boundaries of the material too
-    for (std::uint64_t c : discrete_cells) {
+    for (std::uint64_t c : discrete_cells)
       if (c >= n) throw UserError("a discrete region's cell " + std::to_string(c) + " is outside the grid");
-      box.add_boundary(c);
-    }
-    const auto packing = coupler::packing_fraction<D>(geometry, volume, has_points);
-    const auto distance = coupler::zone_distance<D>(geometry, packing, box.boundary, box.solid, os);
+    in.discrete_cells = discrete_cells;
+    in.grain_volume = volume;
+    in.has_points = has_points;
     // material at rest keeps its zones (coupler::hold_zones_at_rest): at rest below kRestSpeed
     // sqrt(g d); without gravity nothing is held
-    coupler::RestHold hold;
-    const double rest_speed =
+    in.rest_speed =
         coupler::kRestSpeed * std::sqrt(Eigen::Map<const Eigen::Vector3d>(cs.gravity).norm() * cs.grain_diameter);
-    if (zone_source == coupler::kZonesOracle && os.rest_hold > 0 && rest_speed > 0) {
-      std::vector<double> mass(n);
-      for (std::size_t c = 0; c < n; ++c) mass[c] = grain_mass[c] + point_mass[c];
-      hold.at_rest = coupler::material_at_rest<D>(geometry, kinetic, mass, rest_speed);
-      if (std::any_of(box.boundary.begin(), box.boundary.end(), [](std::uint8_t b) { return b != 0; }))
-        hold.boundary_distance = coupler::oracle_detail::distance_to_cells<D>(geometry, box.boundary);
+    if (zone_source == coupler::kZonesOracle && os.rest_hold > 0 && in.rest_speed > 0) {
+      in.kinetic = kinetic;
+      in.mass.resize(n);
+      for (std::size_t c = 0; c < n; ++c) in.mass[c] = grain_mass[c] + point_mass[c];
     }
-    next = coupler::next_zones<D>(geometry, zone_source == coupler::kZonesInitial ? std::vector<std::int8_t>{} : zones_,
-                                  distance, packing, shear, os, &hold);
-    // At the start there are no previous zones to step from: go to the oracle's fixed point.
-    for (int k = 0; zone_source == coupler::kZonesInitial && k < 4; ++k) {
-      auto again = coupler::next_zones<D>(geometry, next, distance, packing, shear, os);
-      if (again == next) break;
-      next.swap(again);
-    }
+    // at the start there are no previous zones to step from: the oracle goes to its fixed point
+    if (zone_source != coupler::kZonesInitial) in.previous = zones_;
+    next = coupler::oracle_zones<D>(geometry, in, os);
   }
 
   // Cells whose material moves: a changed zone, material of the wrong kind for the zone

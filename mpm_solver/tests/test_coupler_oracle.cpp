@@ -641,3 +641,128 @@ TEST(coupler_oracle, DepositAtRestKeepsItsZonesWhileTheSurfaceFlickers) {
   EXPECT_EQ(coupler::next_zones<2>(grid, {}, deep, {}, {}, s, &hold),
             std::vector<std::int8_t>(2, coupler::kHybrid));
 }
+
+// ------------------------------------------------------------------- the oracle's window
+
+/// A random scene on a grid of `cells`: blobs of grains (some dense, some dilute) and points,
+/// container faces inside the grid (random ones touched), cells of discrete regions, previous
+/// zones from the whole-grid oracle on another scene (material moved away leaves zones without
+/// material), random motion (some cells at rest) and shear.
+template <int D>
+coupler::OracleInputs<D> random_oracle_scene(const coupler::GridGeometry<D>& grid, std::mt19937& rng,
+                                             const coupler::OracleSettings& s, bool with_previous) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const std::size_t n = coupler::num_cells(grid);
+  const IVec<D> cells = grid.dims.array() - 1;
+  auto scene = [&] {
+    coupler::OracleInputs<D> in;
+    in.grain_volume.assign(n, 0.0);
+    in.has_points.assign(n, 0);
+    // the material keeps to the middle of the grid, so that the window is smaller than it
+    const int blobs = 1 + static_cast<int>(u(rng) * 3);
+    for (int b = 0; b < blobs; ++b) {
+      Vec<D> centre;
+      for (int a = 0; a < D; ++a) centre[a] = cells[a] * (0.3 + 0.4 * u(rng));
+      const double radius = 2.0 + 0.08 * cells.minCoeff() * u(rng), phi = u(rng) < 0.2 ? 0.2 : 0.5 + 0.4 * u(rng);
+      const bool points = u(rng) < 0.6;
+      for (std::size_t c = 0; c < n; ++c) {
+        const Vec<D> x = coupler::cell_coords<D>(grid, c).template cast<double>().array() + 0.5;
+        if ((x - centre).norm() > radius) continue;
+        in.grain_volume[c] = phi * std::pow(grid.dx, D) * (0.8 + 0.4 * u(rng));
+        if (points && (x - centre).norm() < 0.7 * radius) in.has_points[c] = 1;
+      }
+    }
+    for (int k = 0; k < 5; ++k) {  // a few stray grains
+      IVec<D> c;
+      for (int a = 0; a < D; ++a) c[a] = static_cast<int>(cells[a] * (0.25 + 0.5 * u(rng)));
+      in.grain_volume[coupler::cell_index<D>(grid, c)] += 0.05 * std::pow(grid.dx, D);
+    }
+    for (int a = 0; a < D; ++a) {
+      in.container_lo[a] = grid.dx * (cells[a] * (0.1 + 0.15 * u(rng)));
+      in.container_hi[a] = grid.dx * (cells[a] * (0.75 + 0.15 * u(rng)));
+    }
+    in.touched_faces = static_cast<std::uint32_t>(u(rng) * (1u << (2 * D)));
+    const int regions = static_cast<int>(u(rng) * 3);
+    for (int r = 0; r < regions; ++r) {
+      const std::size_t c0 = static_cast<std::size_t>(u(rng) * n) % n;
+      coupler::for_each_cell_within<D>(grid, coupler::cell_coords<D>(grid, c0), 1,
+                                       [&](std::uint64_t c) { in.discrete_cells.push_back(c); });
+    }
+    if (s.max_shear_rate > 0) {  // as the MPM process gives it: whenever the criterion is on
+      in.shear_rate.assign(n, 0.0);
+      for (double& r : in.shear_rate) r = u(rng) < 0.05 ? 2.0 * s.max_shear_rate : 0.5 * s.max_shear_rate;
+    }
+    in.rest_speed = 0.1;
+    if (u(rng) < 0.7) {
+      in.kinetic.assign(n, 0.0);
+      in.mass.assign(n, 0.0);
+      for (std::size_t c = 0; c < n; ++c) {
+        in.mass[c] = in.grain_volume[c] + in.has_points[c];
+        in.kinetic[c] = in.mass[c] * (u(rng) < 0.7 ? 1e-4 : 1.0);
+      }
+    }
+    return in;
+  };
+  coupler::OracleInputs<D> in = scene();
+  if (with_previous) {
+    coupler::OracleInputs<D> before = scene();
+    before.kinetic.clear(), before.mass.clear();
+    in.previous = coupler::oracle_detail::zones_on<D>(grid, before, s);
+    for (int step = 0; step < 2; ++step) {  // a few updates of it, as a run makes
+      before.previous = in.previous;
+      in.previous = coupler::oracle_detail::zones_on<D>(grid, before, s);
+    }
+  }
+  return in;
+}
+
+template <int D>
+void check_window_gives_the_whole_grids_zones(const IVec<D>& cells, int trials) {
+  const auto grid = grid_of<D>(cells, 0.1);
+  const double dx = grid.dx;
+  std::vector<coupler::OracleSettings> settings(5);
+  settings[0].continuum_depth = 1.5 * dx, settings[0].band = dx;
+  settings[1].continuum_depth = 1.5 * dx, settings[1].band = dx, settings[1].surface_depth = 3.2 * dx;
+  settings[2].continuum_depth = dx, settings[2].band = 2 * dx;  // a band wider than the depth
+  settings[3].continuum_depth = 3 * dx, settings[3].band = 0.6 * dx, settings[3].surface_depth = dx;
+  settings[4].continuum_depth = 2 * dx, settings[4].band = dx, settings[4].dilute_packing = 0.25;
+  settings[4].max_shear_rate = 1.0;
+  std::mt19937 rng(20261207);
+  int smaller = 0, tight_differs = 0, changed = 0;
+  for (int t = 0; t < trials; ++t)
+    for (const auto& s : settings) {
+      const auto in = random_oracle_scene<D>(grid, rng, s, t % 4 != 0);
+      const auto whole = coupler::oracle_detail::zones_on<D>(grid, in, s);
+      ASSERT_EQ(coupler::oracle_zones<D>(grid, in, s), whole) << "trial " << t;
+      std::vector<std::uint8_t> active(whole.size(), 0);
+      for (std::size_t c = 0; c < whole.size(); ++c) active[c] = in.grain_volume[c] > 0 || in.has_points[c];
+      smaller += coupler::cell_window<D>(grid, active, coupler::oracle_margin(s, dx)).cells.size() < whole.size();
+      tight_differs += coupler::oracle_zones<D>(grid, in, s, 0) != whole;
+      changed += !in.previous.empty() && whole != in.previous;
+    }
+  const int runs = trials * static_cast<int>(settings.size());
+  EXPECT_GT(smaller, runs / 2) << "the scenes should leave most windows smaller than the grid";
+  EXPECT_GT(tight_differs, 0) << "a window without margin should miss some zones (else this test proves nothing)";
+  EXPECT_GT(changed, runs / 4);
+}
+
+TEST(coupler_oracle, WindowAroundTheMaterialGivesTheWholeGridsZones2D) {
+  check_window_gives_the_whole_grids_zones<2>(IVec<2>(90, 70), 40);
+}
+
+TEST(coupler_oracle, WindowAroundTheMaterialGivesTheWholeGridsZones3D) {
+  check_window_gives_the_whole_grids_zones<3>(IVec<3>(56, 48, 44), 4);
+}
+
+TEST(coupler_oracle, WindowOfNoMaterialIsEmptyAndClippedToTheGrid) {
+  const auto grid = grid_of<2>(IVec<2>(10, 8), 0.1);
+  std::vector<std::uint8_t> active(80, 0);
+  EXPECT_TRUE(coupler::cell_window<2>(grid, active, 3).cells.empty());
+  active[coupler::cell_index<2>(grid, IVec<2>(1, 6))] = 1;
+  const auto w = coupler::cell_window<2>(grid, active, 3);
+  EXPECT_EQ(w.grid.dims, IVec<2>(6, 6));  // cells 0..4 by 3..7: 5 x 5 cells, 6 x 6 nodes
+  ASSERT_EQ(w.cells.size(), 25u);
+  EXPECT_EQ(w.cells.front(), coupler::cell_index<2>(grid, IVec<2>(0, 3)));
+  EXPECT_EQ(w.cells.back(), coupler::cell_index<2>(grid, IVec<2>(4, 7)));
+  EXPECT_TRUE(w.grid.origin.isApprox(grid.node_position(IVec<2>(0, 3))));
+}

@@ -480,4 +480,132 @@ OracleResult run_oracle(const GridGeometry<D>& grid, const std::vector<double>& 
   return r;
 }
 
+// ---------------------------------------------------------------------------------------
+// The oracle on the material's window of the grid
+
+/// A box of cells of a grid, as a grid of its own (its cells numbered as any grid's), with the
+/// whole grid's index of each of its cells in its own order.
+template <int D>
+struct CellWindow {
+  GridGeometry<D> grid;
+  std::vector<std::size_t> cells;  ///< whole-grid index of window cell k
+  /// The values of a whole-grid field on the window's cells (empty stays empty).
+  template <class T>
+  std::vector<T> take(const std::vector<T>& whole) const {
+    if (whole.empty()) return {};
+    std::vector<T> part(cells.size());
+    for (std::size_t k = 0; k < cells.size(); ++k) part[k] = whole[cells[k]];
+    return part;
+  }
+};
+
+/// The cells within `margin` cells (per axis) of the box around the `active` cells, clipped to
+/// the grid; no cell if none is active.
+template <int D>
+CellWindow<D> cell_window(const GridGeometry<D>& grid, const std::vector<std::uint8_t>& active, int margin) {
+  using IVec = Eigen::Matrix<int, D, 1>;
+  const IVec cells_per_axis = grid.dims.array() - 1;
+  IVec lo = cells_per_axis, hi = IVec::Constant(-1);
+  for (std::size_t c = 0; c < active.size(); ++c)
+    if (active[c]) {
+      const IVec k = cell_coords<D>(grid, c);
+      lo = lo.cwiseMin(k), hi = hi.cwiseMax(k);
+    }
+  CellWindow<D> w;
+  if ((hi.array() < 0).any()) return w;
+  lo = (lo.array() - margin).max(0);
+  hi = (hi.array() + margin).min(cells_per_axis.array() - 1);
+  w.grid = grid;
+  w.grid.origin = grid.node_position(lo);
+  w.grid.dims = hi - lo + IVec::Constant(2);  // nodes: cells + 1
+  const std::size_t n = num_cells<D>(w.grid);
+  w.cells.resize(n);
+  for (std::size_t k = 0; k < n; ++k) w.cells[k] = cell_index<D>(grid, IVec(lo + cell_coords<D>(w.grid, k)));
+  return w;
+}
+
+/// What one oracle step reads, per cell of the whole grid.
+template <int D>
+struct OracleInputs {
+  std::vector<double> grain_volume;           ///< the grains' volume (all DEM ranks summed)
+  std::vector<std::uint8_t> has_points;       ///< cells holding material points
+  std::vector<double> shear_rate;             ///< the fastest shearing point's; empty: no shear criterion
+  std::vector<std::uint64_t> discrete_cells;  ///< cells of discrete regions: boundaries of the material
+  Eigen::Matrix<double, D, 1> container_lo, container_hi;
+  std::uint32_t touched_faces = 0;            ///< faces the continuum may touch (box_cells)
+  /// Rest hold (hold_zones_at_rest): kinetic energy and mass of grains and points; empty: none held
+  std::vector<double> kinetic, mass;
+  double rest_speed = 0;
+  /// The zones before; empty: the start of a run, which goes to the oracle's fixed point
+  std::vector<std::int8_t> previous;
+};
+
+namespace oracle_detail {
+/// One oracle step on `grid` (the whole grid or a window of it), `in` given on its cells.
+template <int D>
+std::vector<std::int8_t> zones_on(const GridGeometry<D>& grid, const OracleInputs<D>& in, const OracleSettings& s) {
+  BoxCells box = box_cells<D>(grid, in.container_lo, in.container_hi, in.touched_faces);
+  for (std::uint64_t c : in.discrete_cells) box.add_boundary(c);
+  const auto packing = packing_fraction<D>(grid, in.grain_volume, in.has_points);
+  const auto distance = zone_distance<D>(grid, packing, box.boundary, box.solid, s);
+  RestHold hold;
+  if (!in.kinetic.empty()) {
+    hold.at_rest = material_at_rest<D>(grid, in.kinetic, in.mass, in.rest_speed);
+    if (std::any_of(box.boundary.begin(), box.boundary.end(), [](std::uint8_t b) { return b != 0; }))
+      hold.boundary_distance = distance_to_cells<D>(grid, box.boundary);
+  }
+  auto next = next_zones<D>(grid, in.previous, distance, packing, in.shear_rate, s, &hold);
+  for (int k = 0; in.previous.empty() && k < 4; ++k) {  // the start: to the fixed point
+    auto again = next_zones<D>(grid, next, distance, packing, in.shear_rate, s);
+    if (again == next) break;
+    next.swap(again);
+  }
+  return next;
+}
+}  // namespace oracle_detail
+
+/// Cells of margin around the material that make the oracle's zones on a window those of the
+/// whole grid. A cell with no material whose zone was discrete ends discrete unless a cell
+/// wanting continuum is within the hybrid reach 2h + sqrt(D) dx (drop_hybrid_without_continuum),
+/// so the zones can change only within `reach` cells of the material; there every distance the
+/// zones compare is exact up to depth + |L - L_s| + 3h (the thresholds L -+ h, the rest hold's
+/// L - 3h, the surface depth's shift), and a source beyond the margin is farther than that.
+inline int oracle_margin(const OracleSettings& s, double dx) {
+  const double reach = 2.0 * s.band / dx + std::sqrt(3.0) + 1.0;  // sqrt(3) >= sqrt(D), and a cell for the rounding
+  const double depth = std::max(s.continuum_depth, s.free_surface_depth()) +
+                       std::abs(s.continuum_depth - s.free_surface_depth()) + 3.0 * s.band;
+  return static_cast<int>(std::ceil(reach) + std::ceil(depth / dx)) + 2;
+}
+
+/// One oracle step over the whole grid, computed on the window of it that holds the material
+/// (grains, points, cells not discrete before) and oracle_margin() around it: the same zones as
+/// oracle_detail::zones_on the whole grid (tests/test_coupler_oracle.cpp), at the cost of the
+/// material's cells rather than the box's (a collapse's column fills a tenth of its box).
+/// `margin` (cells; < 0: oracle_margin) is for the tests, which check that a smaller one is not enough.
+template <int D>
+std::vector<std::int8_t> oracle_zones(const GridGeometry<D>& grid, const OracleInputs<D>& in, const OracleSettings& s,
+                                      int margin = -1) {
+  const std::size_t n = num_cells<D>(grid);
+  std::vector<std::uint8_t> active(n, 0);
+  for (std::size_t c = 0; c < n; ++c)
+    active[c] = (!in.grain_volume.empty() && in.grain_volume[c] > 0) || (!in.has_points.empty() && in.has_points[c]) ||
+                (!in.previous.empty() && in.previous[c] != kDiscrete);
+  std::vector<std::int8_t> zones = in.previous.empty() ? std::vector<std::int8_t>(n, kDiscrete) : in.previous;
+  const CellWindow<D> w = cell_window<D>(grid, active, margin < 0 ? oracle_margin(s, grid.dx) : margin);
+  if (w.cells.empty()) return zones;
+  OracleInputs<D> part;
+  part.grain_volume = w.take(in.grain_volume), part.has_points = w.take(in.has_points);
+  part.shear_rate = w.take(in.shear_rate), part.kinetic = w.take(in.kinetic), part.mass = w.take(in.mass);
+  part.previous = w.take(in.previous);
+  part.container_lo = in.container_lo, part.container_hi = in.container_hi, part.touched_faces = in.touched_faces;
+  part.rest_speed = in.rest_speed;
+  std::vector<std::int64_t> slot(n, -1);
+  for (std::size_t k = 0; k < w.cells.size(); ++k) slot[w.cells[k]] = static_cast<std::int64_t>(k);
+  for (std::uint64_t c : in.discrete_cells)
+    if (slot.at(c) >= 0) part.discrete_cells.push_back(static_cast<std::uint64_t>(slot[c]));
+  const auto inside = oracle_detail::zones_on<D>(w.grid, part, s);
+  for (std::size_t k = 0; k < w.cells.size(); ++k) zones[w.cells[k]] = inside[k];
+  return zones;
+}
+
 }  // namespace coupler
