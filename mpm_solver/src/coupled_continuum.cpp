@@ -252,13 +252,17 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   }
 
   zones_ = std::move(next);
-  std::fill(std::begin(zone_cells_), std::end(zone_cells_), 0);
-  const Vec<D> lo = Eigen::Map<const Eigen::Vector3d>(hello_.box_lo).head<D>();
-  const Vec<D> hi = Eigen::Map<const Eigen::Vector3d>(hello_.box_hi).head<D>();
-  for (std::size_t c = 0; c < n; ++c) {
-    const Vec<D> x = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, c));
-    if ((x.array() >= lo.array()).all() && (x.array() <= hi.array()).all()) ++zone_cells_[zones_[c]];
+  if (cell_in_box_.size() != n) {  // the box and the grid are the run's: once
+    const Vec<D> lo = Eigen::Map<const Eigen::Vector3d>(hello_.box_lo).head<D>();
+    const Vec<D> hi = Eigen::Map<const Eigen::Vector3d>(hello_.box_hi).head<D>();
+    cell_in_box_.resize(n);
+    for (std::size_t c = 0; c < n; ++c) {
+      const Vec<D> x = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, c));
+      cell_in_box_[c] = (x.array() >= lo.array()).all() && (x.array() <= hi.array()).all();
+    }
   }
+  std::fill(std::begin(zone_cells_), std::end(zone_cells_), 0);
+  for (std::size_t c = 0; c < n; ++c) zone_cells_[zones_[c]] += cell_in_box_[c];
   if (pts.size() == 0) time_ = time;  // an empty continuum starts its clock with its first points
   return plans;
 }

@@ -765,4 +765,7 @@ TEST(coupler_oracle, WindowOfNoMaterialIsEmptyAndClippedToTheGrid) {
   EXPECT_EQ(w.cells.front(), coupler::cell_index<2>(grid, IVec<2>(0, 3)));
   EXPECT_EQ(w.cells.back(), coupler::cell_index<2>(grid, IVec<2>(4, 7)));
   EXPECT_TRUE(w.grid.origin.isApprox(grid.node_position(IVec<2>(0, 3))));
+  for (std::size_t k = 0; k < w.cells.size(); ++k) EXPECT_EQ(w.slot_of(grid, w.cells[k]), static_cast<std::int64_t>(k));
+  EXPECT_EQ(w.slot_of(grid, coupler::cell_index<2>(grid, IVec<2>(5, 3))), -1);
+  EXPECT_EQ(w.slot_of(grid, coupler::cell_index<2>(grid, IVec<2>(2, 2))), -1);
 }

@@ -488,7 +488,13 @@ OracleResult run_oracle(const GridGeometry<D>& grid, const std::vector<double>& 
 template <int D>
 struct CellWindow {
   GridGeometry<D> grid;
+  Eigen::Matrix<int, D, 1> first = Eigen::Matrix<int, D, 1>::Zero();  ///< its first cell on the whole grid
   std::vector<std::size_t> cells;  ///< whole-grid index of window cell k
+  /// The window's index of whole-grid cell c, or -1 if the window does not hold it.
+  std::int64_t slot_of(const GridGeometry<D>& whole, std::size_t c) const {
+    const Eigen::Matrix<int, D, 1> k = cell_coords<D>(whole, c) - first;
+    return cell_on_grid<D>(grid, k) ? static_cast<std::int64_t>(cell_index<D>(grid, k)) : -1;
+  }
   /// The values of a whole-grid field on the window's cells (empty stays empty).
   template <class T>
   std::vector<T> take(const std::vector<T>& whole) const {
@@ -516,6 +522,7 @@ CellWindow<D> cell_window(const GridGeometry<D>& grid, const std::vector<std::ui
   lo = (lo.array() - margin).max(0);
   hi = (hi.array() + margin).min(cells_per_axis.array() - 1);
   w.grid = grid;
+  w.first = lo;
   w.grid.origin = grid.node_position(lo);
   w.grid.dims = hi - lo + IVec::Constant(2);  // nodes: cells + 1
   const std::size_t n = num_cells<D>(w.grid);
@@ -599,10 +606,10 @@ std::vector<std::int8_t> oracle_zones(const GridGeometry<D>& grid, const OracleI
   part.previous = w.take(in.previous);
   part.container_lo = in.container_lo, part.container_hi = in.container_hi, part.touched_faces = in.touched_faces;
   part.rest_speed = in.rest_speed;
-  std::vector<std::int64_t> slot(n, -1);
-  for (std::size_t k = 0; k < w.cells.size(); ++k) slot[w.cells[k]] = static_cast<std::int64_t>(k);
-  for (std::uint64_t c : in.discrete_cells)
-    if (slot.at(c) >= 0) part.discrete_cells.push_back(static_cast<std::uint64_t>(slot[c]));
+  for (std::uint64_t c : in.discrete_cells) {
+    if (c >= n) throw std::invalid_argument("oracle_zones: a discrete cell off the grid");
+    if (const std::int64_t k = w.slot_of(grid, c); k >= 0) part.discrete_cells.push_back(static_cast<std::uint64_t>(k));
+  }
   const auto inside = oracle_detail::zones_on<D>(w.grid, part, s);
   for (std::size_t k = 0; k < w.cells.size(); ++k) zones[w.cells[k]] = inside[k];
   return zones;

@@ -91,6 +91,7 @@ class CoupledContinuum {
   /// The grains' carried mass per cell (plan_rezone's sums; complete_rezone sets the moving cells').
   std::vector<double> cell_grain_mass_;
   std::int64_t zone_cells_[3] = {0, 0, 0};
+  std::vector<std::uint8_t> cell_in_box_;  ///< cells whose centre lies in the DEM box (zone_cells_ counts them)
   std::int64_t moved_cells_ = 0, points_made_ = 0, points_removed_ = 0;
   std::int64_t rest_moved_ = 0;  ///< last rezone: cells whose rest of material went to nearby points
   std::int64_t rest_kept_ = 0;   ///< and cells that kept it (no points near enough to take it)
