@@ -184,7 +184,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     in.rest_speed =
         coupler::kRestSpeed * std::sqrt(Eigen::Map<const Eigen::Vector3d>(cs.gravity).norm() * cs.grain_diameter);
     if (zone_source == coupler::kZonesOracle && os.rest_hold > 0 && in.rest_speed > 0) {
-      in.kinetic = kinetic;
+      in.kinetic = std::move(kinetic);  // the hold is its last use
       in.mass.resize(n);
       for (std::size_t c = 0; c < n; ++c) in.mass[c] = grain_mass[c] + point_mass[c];
     }
