@@ -62,7 +62,7 @@ Fix *FixHybridMPM::creator(LAMMPS *lmp, int narg, char **arg)
 FixHybridMPM::FixHybridMPM(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), exchanges(0), restart_exchanges(0), last_step(0), weight(nullptr),
     support(nullptr), converted(false), rezone_pending(false), rezone_source(coupler::kZonesOracle),
-    new_grain_mask(1), polydispersity(0.0), timestep_checked(false), fewest_steps_warned(coupler::kBig),
+    oracle_pending(false), new_grain_mask(1), polydispersity(0.0), timestep_checked(false), fewest_steps_warned(coupler::kBig),
     restored(false), state_loaded(false), clock(new coupler::CouplingClock), stress_id(nullptr),
     last_ack(new coupler::StepAck), coupled_grains(0), vector_step(-1), ledger(new coupler::EnergyLedger),
     ledger_started(false), continuum_start(0.0), run_log(new coupler::DemRunLog)
@@ -139,7 +139,8 @@ FixHybridMPM::~FixHybridMPM()
 int FixHybridMPM::setmask()
 {
   int mask = 0;
-  mask |= PRE_EXCHANGE;    // conversion of the continuum regions' grains (first step)
+  mask |= POST_INTEGRATE;  // the zone oracle, before LAMMPS decides on its neighbour lists
+  mask |= PRE_EXCHANGE;    // the rezones: the conversion (first step), the oracle's
   mask |= POST_NEIGHBOR;   // atoms were reordered: rebuild the list of supported grains
   mask |= END_OF_STEP;     // the coupling exchange
   mask |= POST_RUN;
@@ -269,9 +270,10 @@ void FixHybridMPM::setup(int /*vflag*/)
     guard = std::make_unique<coupler::EnergyGuard>(coupler::EnergyGuard::over_box(
         opt->energy_guard, opt->continuum.gravity, domain->boxlo, domain->boxhi, domain->dimension));
   }
-  // a rezone left pending at the end of the last run is dropped (its stress is of a step
-  // before the commands between the runs); the oracle runs again at its next step
-  rezone_pending = false;
+  // a rezone or oracle left pending at the end of the last run is dropped (its stress is of a
+  // step before the commands between the runs); the oracle runs again at its next step
+  rezone_pending = oracle_pending = false;
+  zone_answer2.reset(), zone_answer3.reset();
   if (!converted && (!opt->continuum_regions.empty() || opt->adapt_every > 0))
     schedule_rezone(opt->continuum_regions.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
   if (opt->adapt_every > 0) {
@@ -312,10 +314,9 @@ void FixHybridMPM::end_of_step()
   if (step % opt->every != 0) return;
   if (domain->dimension == 2) exchange<2>();
   else exchange<3>();
-  // the zone oracle right after this exchange (the MPM process did not advance past it),
+  // the zone oracle at the next step, before the MPM process advances past this exchange,
   // unless the run ends here: the next run's setup reorders the atoms
-  if (opt->oracle_after(step, update->laststep, converted))
-    schedule_rezone(coupler::kZonesOracle);
+  if (opt->oracle_after(step, update->laststep, converted)) schedule_oracle();
 }
 
 /* ---------------------------------------------------------------------- */

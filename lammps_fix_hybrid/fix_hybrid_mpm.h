@@ -39,6 +39,11 @@ template <int D> struct NodeMomentum;
 template <int D> class GrainTransfer;
 template <int D> struct PackingTemplate;
 template <int D> struct RezoneCell;
+template <int D> struct ZoneAnswer;
+template <int D> struct RezonePlan;
+template <int D> struct RezoneAtoms;
+struct RezoneCounts;
+struct RezoneAftermath;
 template <int D> struct BodySums;
 template <int D> struct GrainSums;
 struct CellGrains;
@@ -65,6 +70,7 @@ class FixHybridMPM : public Fix {
   int setmask() override;
   void init() override;
   void setup(int) override;
+  void post_integrate() override;
   void pre_exchange() override;
   void setup_post_neighbor() override;
   void post_neighbor() override;
@@ -118,6 +124,10 @@ class FixHybridMPM : public Fix {
   bool converted;                         // the first rezone happened (points exist)
   bool rezone_pending;                    // a rezone at the next pre_exchange
   int rezone_source;                      // its coupler::ZoneSource
+  bool oracle_pending;                    // the zone oracle at the next post_integrate
+  // its answer where it moves material, for the rezone at that step's pre_exchange
+  std::unique_ptr<coupler::ZoneAnswer<2>> zone_answer2;
+  std::unique_ptr<coupler::ZoneAnswer<3>> zone_answer3;
   int new_grain_mask;                     // group bits of grains made from points
   double polydispersity;                  // of the group's diameters, for the packing template
   std::unique_ptr<coupler::PackingTemplate<2>> template2;    // made at the first enrichment
@@ -159,9 +169,17 @@ class FixHybridMPM : public Fix {
 
   void connect();
   template <int D> void rezone(int source);
+  template <int D> void ask_oracle();
+  template <int D> coupler::RezonePlan<D> rezone_plan(int source);
+  template <int D> coupler::RezoneAtoms<D> rezone_atoms();
+  template <int D> std::unique_ptr<coupler::ZoneAnswer<D>> &zone_answer();
+  void report_rezone(int source, const coupler::RezoneCounts &counts, const coupler::StepAck &ack,
+                     const coupler::RezoneAftermath &aftermath, const double grains_before[7],
+                     const double grains_after[7]);
   template <int D> bool make_grain(const coupler::PlannedGrain<D> &planned);
   template <int D> const coupler::PackingTemplate<D> &packing_template();
   void schedule_rezone(int source);
+  void schedule_oracle();
   double dem_steps_per_contact(std::string &why);
   void check_dem_timestep(const std::string &when);
   void store_atom_stress();
@@ -178,7 +196,7 @@ class FixHybridMPM : public Fix {
   double dem_time() const;
   coupler::StepHeader step_header(int kind) const;
   double dem_time(bigint step) const;
-  double next_exchange_time() const;
+  double next_exchange_time(bigint now, bool rezone_next) const;
   std::vector<std::uint64_t> discrete_cells();
   std::vector<coupler::RegionShape> discrete_shapes() const;
   std::array<std::pair<const char *, const std::vector<std::string> *>, 2> named_regions() const;

@@ -30,17 +30,18 @@ using namespace LAMMPS_NS::hybrid_mpm;
 
 
 /* ----------------------------------------------------------------------
-   time of the next exchange if it is certain now, else -1: the MPM process
-   then advances to it while LAMMPS computes its steps. Not certain: the run
-   ends first, a rezone follows, or a restart file is written before it (the
-   MPM state must then be that of this exchange)
+   time of the exchange after the one at step `now` if it is certain, else
+   -1: the MPM process then advances to it while LAMMPS computes its steps.
+   Not certain: the run ends first, a rezone follows (`rezone_next`), or a
+   restart file is written before it (the MPM state must then be that of
+   this exchange)
 ------------------------------------------------------------------------- */
 
-double FixHybridMPM::next_exchange_time() const
+double FixHybridMPM::next_exchange_time(bigint now, bool rezone_next) const
 {
   coupler::ExchangeOutlook o;
-  o.now = update->ntimestep, o.last_step = update->laststep, o.every = opt->every;
-  o.rezone_next = opt->oracle_after(o.now, update->laststep, converted);
+  o.now = now, o.last_step = update->laststep, o.every = opt->every;
+  o.rezone_next = rezone_next;
   o.restart_file = output->restart_flag && output->next_restart >= o.now && output->next_restart < o.now + opt->every;
   const bigint next = coupler::next_exchange_step(o);
   return next < 0 ? -1.0 : dem_time(next);
@@ -115,7 +116,7 @@ void FixHybridMPM::exchange()
   // every N exchanges, and the run's last: the file holds each run's last coupled state
   const bool run_ends = coupler::last_exchange_of_run(update->ntimestep, opt->every, update->laststep);
   h.output = coupler::output_frame_due(opt->continuum.output_every, exchanges, run_ends) ? 1 : 0;
-  h.next_time = next_exchange_time();
+  h.next_time = next_exchange_time(update->ntimestep, opt->oracle_after(update->ntimestep, update->laststep, converted));
   coupler::StepAck ack;
   coupler::ExchangeTally tally;
   // the session's round trip is the wait for the MPM process (coupler::DemRunLog::charge_exchange)

@@ -153,10 +153,12 @@ int FixHybridMPM::zone_of(const double *x) const
 }
 
 /* ----------------------------------------------------------------------
-   a rezone at the next step's pre_exchange, with the Love-Weber stress of
-   this step, kept per atom: another fix's pre_exchange may delete, add or
-   move atoms before ours (fix evaporate, deposit, balance), so a local
-   index is not the same atom's then; LAMMPS carries atom_stress with them
+   a rezone at the next step's pre_exchange (the conversion), or the zone
+   oracle at the next step's post_integrate (adaptive zones), with the
+   Love-Weber stress of this step, kept per atom: another fix's
+   pre_exchange may delete, add or move atoms before ours (fix evaporate,
+   deposit, balance), so a local index is not the same atom's then; LAMMPS
+   carries atom_stress with them
 ------------------------------------------------------------------------- */
 
 void FixHybridMPM::schedule_rezone(int source)
@@ -165,6 +167,12 @@ void FixHybridMPM::schedule_rezone(int source)
   rezone_pending = true;
   rezone_source = source;
   next_reneighbor = update->ntimestep + 1;
+}
+
+void FixHybridMPM::schedule_oracle()
+{
+  store_atom_stress();
+  oracle_pending = true;
 }
 
 void FixHybridMPM::store_atom_stress()
@@ -184,6 +192,92 @@ void FixHybridMPM::pre_exchange()
   else rezone<3>(rezone_source);
   rezone_pending = false;
   converted = true;
+}
+
+/* ----------------------------------------------------------------------
+   the zone oracle before LAMMPS decides whether to rebuild its neighbour
+   lists (docs/design.md 5.5): where the new zones move material, the
+   rezone follows at this step's pre_exchange (a forced rebuild); where
+   they move none, the rezone ended with the answer and the atoms and their
+   lists stay as they are (most oracle steps of a flow near rest)
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::post_integrate()
+{
+  if (!oracle_pending) return;
+  oracle_pending = false;
+  if (domain->dimension == 2) ask_oracle<2>();
+  else ask_oracle<3>();
+}
+
+template <int D>
+void FixHybridMPM::ask_oracle()
+{
+  const double start = MPI_Wtime();
+  check_finite_grains("before the zone oracle");
+  coupler::RezonePlan<D> plan = rezone_plan<D>(coupler::kZonesOracle);
+  // the last exchange was the step before: the MPM process advances to the next one at once
+  // if no material moves
+  plan.header.next_time = next_exchange_time(update->ntimestep - 1, false);
+  coupler::RezoneAtoms<D> atoms = rezone_atoms<D>();
+  auto answer = std::make_unique<coupler::ZoneAnswer<D>>();
+  const coupler::StepOutcome outcome = coupler::ask_zones<D>(*session, plan, zones, atoms, *answer);
+  if (!outcome.ok()) error->all(FLERR, "Fix hybrid/mpm: " + outcome.what);
+  const double wait = answer->oracle_wait;
+  if (answer->moves_material()) {
+    zone_answer<D>() = std::move(answer);
+    rezone_pending = true;
+    rezone_source = coupler::kZonesOracle;
+    next_reneighbor = update->ntimestep;
+  } else {
+    zones = std::move(answer->zones);
+    *last_ack = answer->ack;
+    double grains_now[7];
+    grain_totals(grains_now);
+    report_rezone(coupler::kZonesOracle, coupler::RezoneCounts{}, answer->ack,
+                  coupler::rezone_aftermath(grains(), grain_rules(), 0, world), grains_now, grains_now);
+  }
+  run_log->charge_rezone(start, wait);
+}
+
+template <int D>
+coupler::RezonePlan<D> FixHybridMPM::rezone_plan(int source)
+{
+  coupler::RezonePlan<D> plan;
+  plan.grid = &transfer<D>().grid();
+  plan.header = step_header(coupler::kStepRezone);
+  plan.header.zone_source = source;
+  plan.oracle = &opt->oracle;
+  plan.packing = &packing_template<D>();
+  plan.rules = grain_rules();
+  plan.grain_diameter = opt->continuum.grain_diameter;
+  for (int a = 0; a < 3; a++) plan.lo[a] = container_edge(a, 0), plan.hi[a] = container_edge(a, 1);
+  return plan;
+}
+
+template <int D>
+coupler::RezoneAtoms<D> FixHybridMPM::rezone_atoms()
+{
+  coupler::RezoneAtoms<D> atoms;
+  atoms.grains = [this] { return grains(); };
+  atoms.make = [this](const coupler::PlannedGrain<D> &p) { return make_grain<D>(p); };
+  atoms.remove = [this](const std::vector<char> &flags) {
+    atom->nlocal = coupler::delete_flagged(flags, atom->nlocal, [this](int from, int to) { atom->avec->copy(from, to, 1); });
+  };
+  atoms.discrete_cells = [this] { return discrete_cells(); };
+  return atoms;
+}
+
+template <>
+std::unique_ptr<coupler::ZoneAnswer<2>> &FixHybridMPM::zone_answer<2>()
+{
+  return zone_answer2;
+}
+
+template <>
+std::unique_ptr<coupler::ZoneAnswer<3>> &FixHybridMPM::zone_answer<3>()
+{
+  return zone_answer3;
 }
 
 template <int D>
@@ -243,7 +337,6 @@ template <int D>
 void FixHybridMPM::rezone(int source)
 {
   const double start = MPI_Wtime();
-  check_finite_grains("before the rezone");
   // as fix pour: atoms are created and deleted now, the ghosts are rebuilt after
   if (atom->map_style != Atom::MAP_NONE) atom->map_clear();
   atom->nghost = 0;
@@ -253,26 +346,26 @@ void FixHybridMPM::rezone(int source)
   grain_totals(grains_before);
   close_dem_bracket();
 
-  coupler::RezonePlan<D> plan;
-  plan.grid = &transfer<D>().grid();
-  plan.header = step_header(coupler::kStepRezone);
-  plan.header.zone_source = source;
-  plan.oracle = &opt->oracle;
-  plan.packing = &packing_template<D>();
-  plan.rules = grain_rules();
-  plan.grain_diameter = opt->continuum.grain_diameter;
-  for (int a = 0; a < 3; a++) plan.lo[a] = container_edge(a, 0), plan.hi[a] = container_edge(a, 1);
-  coupler::RezoneAtoms<D> atoms;
-  atoms.grains = [&] { return grains(); };
-  atoms.make = [&](const coupler::PlannedGrain<D> &p) { return make_grain<D>(p); };
-  atoms.remove = [&](const std::vector<char> &flags) {
-    atom->nlocal = coupler::delete_flagged(flags, atom->nlocal, [&](int from, int to) { atom->avec->copy(from, to, 1); });
-  };
-  atoms.discrete_cells = [&] { return discrete_cells(); };
-  coupler::StepAck ack;
+  const coupler::RezonePlan<D> plan = rezone_plan<D>(source);
+  coupler::RezoneAtoms<D> atoms = rezone_atoms<D>();
+  // the oracle's answer came at post_integrate; the conversion asks now
+  std::unique_ptr<coupler::ZoneAnswer<D>> answer = std::move(zone_answer<D>());
+  double oracle_wait = 0.0;
+  if (!answer) {
+    check_finite_grains("before the rezone");
+    answer = std::make_unique<coupler::ZoneAnswer<D>>();
+    const coupler::StepOutcome asked = coupler::ask_zones<D>(*session, plan, zones, atoms, *answer);
+    if (!asked.ok()) error->all(FLERR, "Fix hybrid/mpm: " + asked.what);
+    oracle_wait = answer->oracle_wait;
+  }
+  zones = std::move(answer->zones);
+  coupler::StepAck ack = answer->ack;
   coupler::RezoneCounts counts;
-  const coupler::StepOutcome outcome = coupler::rezone_grains<D>(*session, world, plan, zones, atoms, support, ack, counts);
-  if (!outcome.ok()) error->all(FLERR, "Fix hybrid/mpm: " + outcome.what);
+  if (answer->moves_material()) {
+    const coupler::StepOutcome outcome =
+        coupler::move_material<D>(*session, world, plan, answer->cells, atoms, support, ack, counts);
+    if (!outcome.ok()) error->all(FLERR, "Fix hybrid/mpm: " + outcome.what);
+  }
   *last_ack = ack;
 
   grain_totals(grains_after);
@@ -290,16 +383,27 @@ void FixHybridMPM::rezone(int source)
     atom->map_init();
     atom->map_set();
   }
+  report_rezone(source, counts, ack, aftermath, grains_before, grains_after);
+  check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
+  double vector[coupler::kVecSize];
+  ledger_vector(grains_after, vector);    // the energy guard, at every rezone that moved material
+  run_log->charge_rezone(start, oracle_wait);
+}
+
+/* ----------------------------------------------------------------------
+   a rezone's tallies and its lines in the rezone log (every rezone with
+   rezone_log full, the conversion by default); every rank
+------------------------------------------------------------------------- */
+
+void FixHybridMPM::report_rezone(int source, const coupler::RezoneCounts &counts, const coupler::StepAck &ack,
+                                 const coupler::RezoneAftermath &aftermath, const double grains_before[7],
+                                 const double grains_after[7])
+{
   const coupler::RezoneReport report =
       coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath);
   // what the rezone did to the totals of grains plus points (exact up to round-off)
   double before[7], after[7];
   coupler::rezone_totals(grains_before, grains_after, ack, before, after);
-  // its lines in the rezone log (every rezone with rezone_log full, the conversion by default)
   const std::string lines = run_log->rezone(report, source != coupler::kZonesOracle, opt->rezone_log, before, after);
   if (comm->me == 0 && !lines.empty()) utils::logmesg(lmp, lines);
-  check_dem_timestep(fmt::format("after the rezone at step {}", update->ntimestep));
-  double vector[coupler::kVecSize];
-  ledger_vector(grains_after, vector);    // the energy guard, at every rezone
-  run_log->charge_rezone(start, counts.oracle_wait);
 }

@@ -84,23 +84,26 @@ StepOutcome exchange_grains(DemSession &session, MPI_Comm comm, GrainTransfer<D>
 }
 
 template <int D>
-StepOutcome rezone_grains(DemSession &session, MPI_Comm comm, const RezonePlan<D> &plan,
-                          std::vector<signed char> &zones, RezoneAtoms<D> &atoms, double *const *support,
+StepOutcome ask_zones(DemSession &session, const RezonePlan<D> &plan, const std::vector<signed char> &zones,
+                      RezoneAtoms<D> &atoms, ZoneAnswer<D> &answer) {
+  // the grains' volume per cell goes to the MPM process, which runs the oracle
+  const std::vector<CellGrains> volumes = cell_grains<D>(*plan.grid, atoms.grains());
+  const double asked = MPI_Wtime();
+  const StepOutcome out = session.settle(session.rezone_zones<D>(
+      plan.header, zones, *plan.oracle, atoms.discrete_cells, volumes, zones.size(), answer.zones, answer.cells,
+      answer.ack));
+  answer.oracle_wait = MPI_Wtime() - asked;
+  return out;
+}
+
+template <int D>
+StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D> &plan,
+                          const std::vector<RezoneCell<D>> &cells, RezoneAtoms<D> &atoms, double *const *support,
                           StepAck &ack, RezoneCounts &counts) {
   const GridGeometry<D> &grid = *plan.grid;
+  StepOutcome out;
 
-  // 1. zones: the grains' volume per cell goes to the MPM process, which runs the oracle
-  const std::vector<CellGrains> volumes = cell_grains<D>(grid, atoms.grains());
-  std::vector<signed char> new_zones;
-  std::vector<RezoneCell<D>> cells;
-  const double asked = MPI_Wtime();
-  StepOutcome out = session.settle(session.rezone_zones<D>(plan.header, zones, *plan.oracle, atoms.discrete_cells,
-                                                           volumes, zones.size(), new_zones, cells, ack));
-  counts.oracle_wait = MPI_Wtime() - asked;
-  if (!out.ok()) return out;
-  zones = std::move(new_zones);
-
-  // 2. the sums of the grains in the moving cells, before anything changes
+  // (1. the zones: ask_zones) 2. the sums of the grains in the moving cells, before anything changes
   const CellSlots slots = cell_slots<D>(cells);
   std::map<std::size_t, GrainSums<D>> sums = moving_grain_sums<D>(grid, cells, slots, atoms.grains(), plan.rules);
 
@@ -541,10 +544,16 @@ template StepOutcome exchange_grains<3>(DemSession &, MPI_Comm, GrainTransfer<3>
                                         const std::vector<int> &, StepHeader, double, double **, std::vector<int> &,
                                         const std::function<std::vector<GrainRecord>()> &, StepAck &,
                                         ExchangeTally &);
-template StepOutcome rezone_grains<2>(DemSession &, MPI_Comm, const RezonePlan<2> &, std::vector<signed char> &,
-                                      RezoneAtoms<2> &, double *const *, StepAck &, RezoneCounts &);
-template StepOutcome rezone_grains<3>(DemSession &, MPI_Comm, const RezonePlan<3> &, std::vector<signed char> &,
-                                      RezoneAtoms<3> &, double *const *, StepAck &, RezoneCounts &);
+template StepOutcome ask_zones<2>(DemSession &, const RezonePlan<2> &, const std::vector<signed char> &,
+                                  RezoneAtoms<2> &, ZoneAnswer<2> &);
+template StepOutcome ask_zones<3>(DemSession &, const RezonePlan<3> &, const std::vector<signed char> &,
+                                  RezoneAtoms<3> &, ZoneAnswer<3> &);
+template StepOutcome move_material<2>(DemSession &, MPI_Comm, const RezonePlan<2> &,
+                                      const std::vector<RezoneCell<2>> &, RezoneAtoms<2> &, double *const *,
+                                      StepAck &, RezoneCounts &);
+template StepOutcome move_material<3>(DemSession &, MPI_Comm, const RezonePlan<3> &,
+                                      const std::vector<RezoneCell<3>> &, RezoneAtoms<3> &, double *const *,
+                                      StepAck &, RezoneCounts &);
 
 std::string guarded_thermo_vector(const EnergyLedger &ledger, MPI_Comm comm, const StepAck &ack,
                                   std::int64_t exchanges, std::int64_t coupled_grains, const double grain_totals[7],

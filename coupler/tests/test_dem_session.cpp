@@ -209,6 +209,40 @@ TEST_F(DemSession, RezoneRunsItsThreeRoundTrips) {
   }
 }
 
+TEST_F(DemSession, ARezoneThatMovesNoMaterialEndsWithItsAcknowledgement) {
+  // no cell to rezone: the acknowledgement follows the zone map at once (the host then changes
+  // no atom), and the next rezone's error acknowledgement there is the MPM process's failure
+  constexpr std::size_t kCells = 4;
+  if (dem()) {
+    DemSide &s = *side;
+    coupler::StepAck a;
+    auto h = header(51, coupler::kStepRezone);
+    h.zone_source = coupler::kZonesOracle;
+    std::vector<signed char> zones;
+    std::vector<coupler::RezoneCell<2>> cells(3);
+    auto out = s.session->rezone_zones<2>(h, {}, coupler::OracleSettings{}, [] { return std::vector<std::uint64_t>(); },
+                                          {}, kCells, zones, cells, a);
+    ASSERT_TRUE(out.ok()) << out.what;
+    EXPECT_TRUE(cells.empty());
+    EXPECT_EQ(zones, std::vector<signed char>(kCells, coupler::kHybrid));
+    EXPECT_EQ(a.points, 9);
+    out = s.session->rezone_zones<2>(header(61, coupler::kStepRezone), {}, coupler::OracleSettings{},
+                                     [] { return std::vector<std::uint64_t>(); }, {}, kCells, zones, cells, a);
+    EXPECT_EQ(out.status, coupler::StepOutcome::kPeerFailed);
+    EXPECT_NE(out.what.find("the MPM process could not rezone: points lost"), std::string::npos) << out.what;
+  } else {
+    for (const char *error : {"", "points lost"}) {
+      recv_struct<coupler::StepHeader>(coupler::kTagStep);
+      recv_struct<coupler::OracleSettings>(coupler::kTagOracle);
+      recv_array<std::uint64_t>(coupler::kTagDiscreteCells);
+      recv_array<coupler::CellGrains>(coupler::kTagVolumes);
+      send_array(coupler::kTagZones, std::vector<signed char>(kCells, coupler::kHybrid));
+      send_array(coupler::kTagRezoneCells, std::vector<coupler::RezoneCell<2>>());
+      send_struct(coupler::kTagStepAck, ack(*error ? 1 : 0, error, 9));
+    }
+  }
+}
+
 TEST_F(DemSession, RezoneZonesOfTheWrongSizeAreAProtocolErrorAndTheOracleGetsItsSettings) {
   if (dem()) {
     DemSide &s = *side;

@@ -63,7 +63,7 @@ FixHybridMPMLiggghts::FixHybridMPMLiggghts(LAMMPS *lmp, int narg, char **arg) :
     Fix(lmp, narg, arg), last_ack(new coupler::StepAck), ledger(new coupler::EnergyLedger),
     run_log(new coupler::DemRunLog), weight(NULL), support(NULL), atom_stress(NULL), stress_id(NULL), exchanges(0),
     coupled_grains(0), last_step(0), vector_step(-1), converted(false), rezone_pending(false),
-    ledger_started(false), timestep_checked(false), restored(false), state_loaded(false), restart_exchanges(0),
+    ledger_started(false), oracle_pending(false), timestep_checked(false), restored(false), state_loaded(false), restart_exchanges(0),
     new_grain_mask(1), rezone_source(0), polydispersity(0.0), continuum_start(0.0),
     clock(new coupler::CouplingClock), fewest_steps_warned(coupler::kBig)
 {
@@ -141,7 +141,8 @@ FixHybridMPMLiggghts::~FixHybridMPMLiggghts()
 int FixHybridMPMLiggghts::setmask()
 {
   int mask = 0;
-  mask |= PRE_EXCHANGE;    // the conversion of the continuum regions' grains (first step)
+  mask |= POST_INTEGRATE;  // the zone oracle, before LIGGGHTS decides on its neighbour lists
+  mask |= PRE_EXCHANGE;    // the rezones: the conversion (first step), the oracle's
   mask |= PRE_NEIGHBOR;    // atoms were exchanged and sorted: rebuild the list of supported grains
   mask |= END_OF_STEP;     // the coupling exchange
   mask |= POST_RUN;
@@ -279,9 +280,10 @@ void FixHybridMPMLiggghts::setup(int /*vflag*/)
     guard = std::make_unique<coupler::EnergyGuard>(
         coupler::EnergyGuard::over_box(opt->energy_guard, opt->continuum.gravity, domain->boxlo, domain->boxhi, 3));
   }
-  // a rezone left pending at the end of the last run is dropped (its stress is of a step before
-  // the commands between the runs); the oracle runs again at its next step
-  rezone_pending = false;
+  // a rezone or oracle left pending at the end of the last run is dropped (its stress is of a step
+  // before the commands between the runs); the oracle runs again at its next step
+  rezone_pending = oracle_pending = false;
+  zone_answer.reset();
   if (!converted && opt->splits())
     schedule_rezone(opt->continuum_regions.empty() ? coupler::kZonesInitial : coupler::kZonesGiven);
   if (opt->adaptive())    // the Love-Weber stress of the first oracle step needs its per-atom virial
@@ -322,10 +324,9 @@ void FixHybridMPMLiggghts::end_of_step()
   }
   if (step % opt->every != 0) return;
   exchange();
-  // the zone oracle right after this exchange (the MPM process did not advance past it), unless
+  // the zone oracle at the next step, before the MPM process advances past this exchange, unless
   // the run ends here: the next run's setup reorders the atoms
-  if (opt->oracle_after(step, update->laststep, converted))
-    schedule_rezone(coupler::kZonesOracle);
+  if (opt->oracle_after(step, update->laststep, converted)) schedule_oracle();
 }
 
 void FixHybridMPMLiggghts::post_run()

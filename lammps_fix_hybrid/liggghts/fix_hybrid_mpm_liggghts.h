@@ -33,6 +33,11 @@ struct RegionShape;
 template <int D> class GrainTransfer;
 template <int D> struct PackingTemplate;
 template <int D> struct PlannedGrain;
+template <int D> struct ZoneAnswer;
+template <int D> struct RezonePlan;
+template <int D> struct RezoneAtoms;
+struct RezoneCounts;
+struct RezoneAftermath;
 }
 
 namespace LAMMPS_NS {
@@ -46,6 +51,7 @@ class FixHybridMPMLiggghts : public Fix {
   void setup(int);
   void setup_pre_neighbor() { pre_neighbor(); }
   void pre_neighbor();
+  void post_integrate();
   void pre_exchange();
   void end_of_step();
   void post_run();
@@ -88,6 +94,8 @@ class FixHybridMPMLiggghts : public Fix {
   char *stress_id;                                 // compute stress/atom for the Love-Weber stress
   bigint exchanges, coupled_grains, last_step, vector_step;
   bool converted, rezone_pending, ledger_started;
+  bool oracle_pending;    // the zone oracle at the next post_integrate
+  std::unique_ptr<coupler::ZoneAnswer<3>> zone_answer;    // its answer where material moves
   bool timestep_checked;          // the DEM time step was checked (and logged) once
   bool restored, state_loaded;    // restarted after the conversion: the MPM process loads its state
   bigint restart_exchanges;       // exchanges read from a restart file
@@ -104,6 +112,8 @@ class FixHybridMPMLiggghts : public Fix {
   void compute_zones();
   int zone_of(const double *x) const;
   void schedule_rezone(int source);
+  void schedule_oracle();
+  void store_atom_stress();
   class Compute *stress_compute() const;    // that compute; an error if it was deleted
   std::vector<std::uint64_t> discrete_cells() const;
   std::vector<coupler::RegionShape> discrete_shapes() const;
@@ -112,12 +122,18 @@ class FixHybridMPMLiggghts : public Fix {
   std::vector<std::string> insertions_warned;    // fix insert/* whose particles this fix does not couple
   void check_insertions();
   void rezone(int source);
+  coupler::RezonePlan<3> rezone_plan(int source, double next_time);
+  coupler::RezoneAtoms<3> rezone_atoms();
+  void check_finite_atoms(const char *before) const;    // an error for a NaN or inf atom
+  void report_rezone(int source, const coupler::RezoneCounts &counts, const coupler::StepAck &ack,
+                     const coupler::RezoneAftermath &aftermath, const double grains_before[7],
+                     const double grains_after[7]);
   bool make_grain(const coupler::PlannedGrain<3> &planned);
   void exchange();
   void log_rezone_summary(bool end_of_run);    // the rezones since the last thermo output, or of the run
   void print_timing_breakdown();              // at the end of a run, before LIGGGHTS's own
   double dem_time(bigint step) const;
-  double next_exchange_time() const;
+  double next_exchange_time(bigint now, bool rezone_next) const;
   coupler::StepHeader step_header(int kind) const;
   coupler::DemGrains grains() const;
   coupler::GrainArrays arrays() const;    // weight, support, atom_stress

@@ -61,13 +61,14 @@ coupler::StepHeader FixHybridMPMLiggghts::step_header(int kind) const
   return h;
 }
 
-// the time of the next exchange if it is certain now (the MPM process advances to it while
-// LIGGGHTS computes its steps), else -1: the run ends first, or a rezone comes first
-double FixHybridMPMLiggghts::next_exchange_time() const
+// the time of the exchange after the one at step `now` if it is certain (the MPM process
+// advances to it while LIGGGHTS computes its steps), else -1: the run ends first, a rezone
+// (`rezone_next`) or a restart file comes first
+double FixHybridMPMLiggghts::next_exchange_time(bigint now, bool rezone_next) const
 {
   coupler::ExchangeOutlook o;
-  o.now = update->ntimestep, o.last_step = update->laststep, o.every = opt->every;
-  o.rezone_next = opt->oracle_after(o.now, update->laststep, converted);
+  o.now = now, o.last_step = update->laststep, o.every = opt->every;
+  o.rezone_next = rezone_next;
   const bigint restart_step = output->*member(liggghts_private::OutputNextRestart{});
   o.restart_file = output->*member(liggghts_private::OutputRestartFlag{}) && restart_step >= o.now && restart_step < o.now + opt->every;
   const bigint next = coupler::next_exchange_step(o);
@@ -84,7 +85,7 @@ void FixHybridMPMLiggghts::exchange()
   // every N exchanges, and the run's last: the file holds each run's last coupled state
   const bool run_ends = coupler::last_exchange_of_run(update->ntimestep, opt->every, update->laststep);
   h.output = coupler::output_frame_due(opt->continuum.output_every, exchanges, run_ends) ? 1 : 0;
-  h.next_time = next_exchange_time();
+  h.next_time = next_exchange_time(update->ntimestep, opt->oracle_after(update->ntimestep, update->laststep, converted));
   auto frame = [&] { return coupler::frame_records(grains(), atom->tag, [&](const double *x) { return zone_of(x); }); };
   coupler::StepAck ack;
   coupler::ExchangeTally tally;

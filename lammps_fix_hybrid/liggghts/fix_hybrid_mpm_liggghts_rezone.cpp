@@ -115,15 +115,29 @@ Compute *FixHybridMPMLiggghts::stress_compute() const
   return modify->compute[icompute];
 }
 
-void FixHybridMPMLiggghts::schedule_rezone(int source)
+// the Love-Weber stress of this step, per atom, for the next rezone's new points
+void FixHybridMPMLiggghts::store_atom_stress()
 {
   Compute *c = stress_compute();
   c->compute_peratom();
   for (int i = 0; i < atom->nlocal; i++)
     for (int k = 0; k < 6; k++) atom_stress[i][k] = c->array_atom[i][k];
+}
+
+// a rezone at the next step's pre_exchange (the conversion)
+void FixHybridMPMLiggghts::schedule_rezone(int source)
+{
+  store_atom_stress();
   rezone_pending = true;
   rezone_source = source;
   next_reneighbor = update->ntimestep + 1;
+}
+
+// the zone oracle at the next step's post_integrate (adaptive zones)
+void FixHybridMPMLiggghts::schedule_oracle()
+{
+  store_atom_stress();
+  oracle_pending = true;
 }
 
 // grid cells a discrete region touches now (regions may move): the oracle's boundaries
@@ -186,6 +200,85 @@ void FixHybridMPMLiggghts::pre_exchange()
   converted = true;
 }
 
+// the zone oracle before LIGGGHTS decides whether to rebuild its neighbour lists (as the LAMMPS
+// fix, docs/design.md 5.5): a rezone at this step's pre_exchange only where material moves
+void FixHybridMPMLiggghts::post_integrate()
+{
+  if (!oracle_pending) return;
+  oracle_pending = false;
+  const double start = MPI_Wtime();
+  check_finite_atoms("the zone oracle");
+  const coupler::RezonePlan<3> plan = rezone_plan(coupler::kZonesOracle, next_exchange_time(update->ntimestep - 1, false));
+  coupler::RezoneAtoms<3> atoms = rezone_atoms();
+  auto answer = std::make_unique<coupler::ZoneAnswer<3>>();
+  const coupler::StepOutcome outcome = coupler::ask_zones<3>(*session, plan, zones, atoms, *answer);
+  if (!outcome.ok()) fail(outcome.what);
+  const double wait = answer->oracle_wait;
+  if (answer->moves_material()) {
+    zone_answer = std::move(answer);
+    rezone_pending = true;
+    rezone_source = coupler::kZonesOracle;
+    next_reneighbor = update->ntimestep;
+  } else {    // the rezone ended with the answer: the atoms and their lists stay as they are
+    zones = std::move(answer->zones);
+    *last_ack = answer->ack;
+    double grains_now[7];
+    grain_totals(grains_now);
+    report_rezone(coupler::kZonesOracle, coupler::RezoneCounts{}, answer->ack,
+                  coupler::rezone_aftermath(grains(), grain_rules(), 0, world), grains_now, grains_now);
+  }
+  run_log->charge_rezone(start, wait);
+}
+
+void FixHybridMPMLiggghts::check_finite_atoms(const char *before) const
+{
+  for (int i = 0; i < atom->nlocal; i++)
+    for (int a = 0; a < 3; a++)
+      if (!std::isfinite(atom->x[i][a]) || !std::isfinite(atom->v[i][a]) || !std::isfinite(atom->rmass[i]))
+        error->one(FLERR, (std::string("Fix hybrid/mpm: an atom has a non-finite (NaN or inf) position, velocity or "
+                                       "mass before ") + before + ": check the time step and the input").c_str());
+}
+
+coupler::RezonePlan<3> FixHybridMPMLiggghts::rezone_plan(int source, double next_time)
+{
+  coupler::RezonePlan<3> plan;
+  plan.grid = &transfer->grid();
+  plan.header = step_header(coupler::kStepRezone);
+  plan.header.zone_source = source;
+  plan.header.next_time = next_time;
+  plan.oracle = &opt->oracle;
+  if (!packing)
+    packing.reset(new coupler::PackingTemplate<3>(
+        coupler::make_packing_template<3>(6, polydispersity, static_cast<std::uint32_t>(opt->template_seed))));
+  plan.packing = packing.get();
+  plan.rules = grain_rules();
+  plan.grain_diameter = opt->continuum.grain_diameter;
+  for (int a = 0; a < 3; a++)
+    plan.lo[a] = opt->container_edge(a, 0, domain->boxlo, domain->boxhi),
+    plan.hi[a] = opt->container_edge(a, 1, domain->boxlo, domain->boxhi);
+  return plan;
+}
+
+coupler::RezoneAtoms<3> FixHybridMPMLiggghts::rezone_atoms()
+{
+  coupler::RezoneAtoms<3> atoms;
+  atoms.grains = [this] { return grains(); };
+  atoms.make = [this](const coupler::PlannedGrain<3> &p) { return make_grain(p); };
+  atoms.remove = [this](const std::vector<char> &flags) {
+    atom->nlocal = coupler::delete_flagged(flags, atom->nlocal, [this](int from, int to) { atom->avec->copy(from, to, 1); });
+  };
+  // the oracle's boundaries: the discrete regions and the mesh walls (their cells gathered here,
+  // collectively: the session asks for them on rank 0 only)
+  atoms.discrete_cells = [this, mesh_cells = mesh_wall_cells()] {
+    std::vector<std::uint64_t> cells = discrete_cells();
+    cells.insert(cells.end(), mesh_cells.begin(), mesh_cells.end());
+    std::sort(cells.begin(), cells.end());
+    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+    return cells;
+  };
+  return atoms;
+}
+
 // as LIGGGHTS's particle insertion: the atom, its per-atom data in every fix (contact history, ours)
 bool FixHybridMPMLiggghts::make_grain(const coupler::PlannedGrain<3> &p)
 {
@@ -209,62 +302,43 @@ bool FixHybridMPMLiggghts::make_grain(const coupler::PlannedGrain<3> &p)
 void FixHybridMPMLiggghts::rezone(int source)
 {
   const double start = MPI_Wtime();
-  for (int i = 0; i < atom->nlocal; i++)
-    for (int a = 0; a < 3; a++)
-      if (!std::isfinite(atom->x[i][a]) || !std::isfinite(atom->v[i][a]) || !std::isfinite(atom->rmass[i]))
-        error->one(FLERR, "Fix hybrid/mpm: an atom has a non-finite (NaN or inf) position, velocity or mass before "
-                          "the conversion: check the time step and the input");
   // as LIGGGHTS's insertion: atoms are created and deleted now, the ghosts are rebuilt after
   if (atom->map_style) atom->map_clear();
   atom->nghost = 0;
-  double grains_before[7], grains_after[7], before[7], after[7];
+  double grains_before[7], grains_after[7];
   grain_totals(grains_before);
   ledger->close_dem_bracket(grain_energy());
 
-  coupler::RezonePlan<3> plan;
-  plan.grid = &transfer->grid();
-  plan.header = step_header(coupler::kStepRezone);
-  plan.header.zone_source = source;
-  plan.oracle = &opt->oracle;
-  if (!packing)
-    packing.reset(new coupler::PackingTemplate<3>(
-        coupler::make_packing_template<3>(6, polydispersity, static_cast<std::uint32_t>(opt->template_seed))));
-  plan.packing = packing.get();
-  plan.rules = grain_rules();
-  plan.grain_diameter = opt->continuum.grain_diameter;
-  for (int a = 0; a < 3; a++)
-    plan.lo[a] = opt->container_edge(a, 0, domain->boxlo, domain->boxhi),
-    plan.hi[a] = opt->container_edge(a, 1, domain->boxlo, domain->boxhi);
-  coupler::RezoneAtoms<3> atoms;
-  atoms.grains = [&] { return grains(); };
-  atoms.make = [&](const coupler::PlannedGrain<3> &p) { return make_grain(p); };
-  atoms.remove = [&](const std::vector<char> &flags) {
-    atom->nlocal = coupler::delete_flagged(flags, atom->nlocal, [&](int from, int to) { atom->avec->copy(from, to, 1); });
-  };
-  // the oracle's boundaries: the discrete regions and the mesh walls (their cells gathered here:
-  // the session asks for them on rank 0 only)
-  const std::vector<std::uint64_t> mesh_cells = mesh_wall_cells();
-  if (source == coupler::kZonesGiven) {
-    // the continuum regions' own map: it must leave the grains next to a mesh wall discrete
-    std::int64_t covered = 0;
-    for (std::uint64_t c : mesh_cells) covered += zones[c] != coupler::kDiscrete;
-    if (covered > 0)
-      fail("the continuum regions make " + std::to_string(covered) + " grid cells that a mesh wall (fix " +
-           "mesh/surface) passes through continuum or hybrid, but grains next to a mesh wall must stay discrete: "
-           "make the continuum regions clear of the mesh walls by at least hybrid_width + 1 cells, or use adaptive "
-           "zones (keyword adaptive), whose oracle keeps the mesh walls' cells discrete");
+  const coupler::RezonePlan<3> plan = rezone_plan(source, -1.0);
+  coupler::RezoneAtoms<3> atoms = rezone_atoms();
+  // the oracle's answer came at post_integrate; the conversion asks now
+  std::unique_ptr<coupler::ZoneAnswer<3>> answer = std::move(zone_answer);
+  double oracle_wait = 0.0;
+  if (!answer) {
+    check_finite_atoms("the conversion");
+    if (source == coupler::kZonesGiven) {
+      // the continuum regions' own map: it must leave the grains next to a mesh wall discrete
+      std::int64_t covered = 0;
+      for (std::uint64_t c : mesh_wall_cells()) covered += zones[c] != coupler::kDiscrete;
+      if (covered > 0)
+        fail("the continuum regions make " + std::to_string(covered) + " grid cells that a mesh wall (fix " +
+             "mesh/surface) passes through continuum or hybrid, but grains next to a mesh wall must stay discrete: "
+             "make the continuum regions clear of the mesh walls by at least hybrid_width + 1 cells, or use adaptive "
+             "zones (keyword adaptive), whose oracle keeps the mesh walls' cells discrete");
+    }
+    answer = std::make_unique<coupler::ZoneAnswer<3>>();
+    const coupler::StepOutcome asked = coupler::ask_zones<3>(*session, plan, zones, atoms, *answer);
+    if (!asked.ok()) fail(asked.what);
+    oracle_wait = answer->oracle_wait;
   }
-  atoms.discrete_cells = [&] {
-    std::vector<std::uint64_t> cells = discrete_cells();
-    cells.insert(cells.end(), mesh_cells.begin(), mesh_cells.end());
-    std::sort(cells.begin(), cells.end());
-    cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
-    return cells;
-  };
-  coupler::StepAck ack;
+  zones = std::move(answer->zones);
+  coupler::StepAck ack = answer->ack;
   coupler::RezoneCounts counts;
-  const coupler::StepOutcome outcome = coupler::rezone_grains<3>(*session, world, plan, zones, atoms, support, ack, counts);
-  if (!outcome.ok()) fail(outcome.what);
+  if (answer->moves_material()) {
+    const coupler::StepOutcome outcome =
+        coupler::move_material<3>(*session, world, plan, answer->cells, atoms, support, ack, counts);
+    if (!outcome.ok()) fail(outcome.what);
+  }
   *last_ack = ack;
 
   grain_totals(grains_after);
@@ -283,13 +357,22 @@ void FixHybridMPMLiggghts::rezone(int source)
     atom->map_init();
     atom->map_set();
   }
-  const coupler::RezoneReport report =
-      coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath);
-  coupler::rezone_totals(grains_before, grains_after, ack, before, after);
-  // its lines in the rezone log (every rezone with rezone_log full, the conversion by default)
-  say(run_log->rezone(report, source != coupler::kZonesOracle, opt->rezone_log, before, after));
+  report_rezone(source, counts, ack, aftermath, grains_before, grains_after);
   check_dem_timestep("after the rezone at step " + std::to_string(update->ntimestep));
   double vector[coupler::kVecSize];
-  ledger_vector(grains_after, vector);    // the energy guard, at every rezone
-  run_log->charge_rezone(start, counts.oracle_wait);
+  ledger_vector(grains_after, vector);    // the energy guard, at every rezone that moved material
+  run_log->charge_rezone(start, oracle_wait);
+}
+
+// a rezone's tallies and its lines in the rezone log (every rezone with rezone_log full, the
+// conversion by default)
+void FixHybridMPMLiggghts::report_rezone(int source, const coupler::RezoneCounts &counts, const coupler::StepAck &ack,
+                                         const coupler::RezoneAftermath &aftermath, const double grains_before[7],
+                                         const double grains_after[7])
+{
+  const coupler::RezoneReport report =
+      coupler::rezone_report(update->ntimestep, counts, ack, opt->continuum.grain_weight, aftermath);
+  double before[7], after[7];
+  coupler::rezone_totals(grains_before, grains_after, ack, before, after);
+  say(run_log->rezone(report, source != coupler::kZonesOracle, opt->rezone_log, before, after));
 }

@@ -311,10 +311,11 @@ void ack_all(coupler::Link& link, const coupler::StepAck& ack, const std::string
   for (int r = 0; r < link.remote_size(); ++r) link.send_struct(r, coupler::kTagStepAck, ack, what);
 }
 
-/// One rezone transaction (coupler/protocol.hpp). Returns 0, or 2 after reporting an error.
+/// One rezone transaction (coupler/protocol.hpp). Returns 0, or 2 after reporting an error;
+/// `moved` says whether it moved material (one that moves none ends after the zone map).
 template <int D>
 int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::StepHeader& h,
-           const std::string& deferred_error, const CoupledOptions& opt) {
+           const std::string& deferred_error, const CoupledOptions& opt, bool& moved) {
   const std::string at = " of the rezone at step " + std::to_string(h.step);
   std::vector<std::int8_t> given;
   coupler::OracleSettings oracle;
@@ -348,6 +349,19 @@ int rezone(coupler::Link& link, CoupledContinuum<D>* continuum, const coupler::S
     link.send_array(r, coupler::kTagZones, continuum->zones(), "the new zone map" + at);
     link.send_array(r, coupler::kTagRezoneCells, cells, "the cells to rezone" + at);
   }
+  if (cells.empty()) {  // no material moves: the acknowledgement ends the rezone
+    coupler::StepAck ack;
+    try {
+      continuum->complete_rezone({});
+      ack = continuum->totals(h.step);
+    } catch (...) {
+      return fail(failed + describe_exception(std::current_exception()));
+    }
+    ack_all(link, ack, "the rezone's acknowledgement" + at);
+    moved = false;
+    return 0;
+  }
+  moved = true;
   const auto grains = receive_from_all<coupler::GrainSums<D>>(link, coupler::kTagGrainSums, "the grain sums" + at);
   std::vector<coupler::GrainCorrection<D>> corrections;
   try {
@@ -445,8 +459,20 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
       if (const std::string bad = clock.check(h); !bad.empty()) throw coupler::PeerError("protocol error: " + bad);
       if (h.kind == coupler::kStepCouple) fault.check("unknown", h.step);
       if (h.kind == coupler::kStepRezone) {
-        if (rezone<D>(link, built.get(), h, deferred_error, opt) != 0) return 2;
+        bool moved = true;
+        if (rezone<D>(link, built.get(), h, deferred_error, opt, moved) != 0) return 2;
         ledger.lap(ServeLedger::kRezone);
+        // no material moved: the DEM host computes its steps to the next exchange, as after one
+        // (errors are reported at that exchange)
+        if (!moved && h.next_time > h.time) {
+          try {
+            built->advance_to(h.next_time);
+          } catch (...) {
+            deferred_error = "the continuum failed after the rezone at step " + std::to_string(h.step) + ": " +
+                             describe_exception(std::current_exception());
+          }
+          ledger.lap(ServeLedger::kSubstepsAfter);
+        }
         continue;
       }
       if (h.kind == coupler::kStepSave || h.kind == coupler::kStepLoad) {

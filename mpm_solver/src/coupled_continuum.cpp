@@ -140,11 +140,13 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     }
   auto& pts = solver_.points();
   std::vector<std::uint8_t> has_points(n, 0);
+  std::vector<std::uint32_t> point_count(n, 0);
   std::vector<double> point_mass(n, 0.0);
   std::vector<std::size_t> point_cell(pts.size());
   for (std::size_t p = 0; p < pts.size(); ++p) {
     point_cell[p] = coupler::cell_index<D>(geometry, coupler::cell_of<D>(geometry, pts.x[p]));
     has_points[point_cell[p]] = 1;
+    ++point_count[point_cell[p]];
     point_mass[point_cell[p]] += pts.mass[p];
     kinetic[point_cell[p]] += 0.5 * pts.mass[p] * pts.v[p].squaredNorm();
   }
@@ -208,6 +210,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
   };
   moving_.clear();
   std::vector<std::int64_t> slot(n, -1);
+  repairs_.resize(n);
   for (std::size_t c = 0; c < n; ++c) {
     const bool grains = volume[c] > 0, points = has_points[c] != 0;
     if (!grains && !points) continue;
@@ -217,6 +220,12 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     const bool light = next[c] == coupler::kDiscrete && grains &&
                        grain_mass[c] < coupler::kLightGrains * cs.grain_density * volume[c] && carriers_near(c);
     if (next[c] == zones_[c] && !stray && !starved && !light) continue;
+    // a repair (the zone stays, its grains starved or light) of a cell whose grains and points
+    // are those of its last repair: the rezone would do what it did then, and that left it so
+    const bool repair = next[c] == zones_[c] && !stray;
+    if (repair && repairs_[c].same(volume[c], grain_mass[c], point_count[c])) continue;
+    repairs_[c] = repair ? Repair{volume[c], grain_mass[c], point_count[c]} : Repair{};
+
     slot[c] = static_cast<std::int64_t>(moving_.size());
     MovingCell m;
     m.plan.cell = c;

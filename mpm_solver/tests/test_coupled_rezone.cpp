@@ -229,6 +229,52 @@ TEST(CoupledRezone, HybridCellDrainedOfItsGrainsMakesThemAgain) {
   EXPECT_EQ(planned(0.3 * weight * packed), 2) << "most drained out: grains made again";
 }
 
+// A repair that leaves the cell as it was (here: no grain could be made in the starved cell, so
+// none comes back in the grain sums) is not planned again at every oracle step while the cell's
+// grains and points stay the same (a 100 d collapse near rest replanned the same 2 cells at
+// every one); it is once a grain comes or goes.
+TEST(CoupledRezone, ARepairThatChangedNothingWaitsForTheCellsGrainsToChange) {
+  const coupler::Hello hello = square_box();
+  mpm::CoupledContinuum<2> continuum(hello);
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+  const std::uint64_t x = coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(5.5, 5.5)));
+  zones[x] = coupler::kHybrid;
+  const double packed = 0.8 * kSolidContent, weight = hello.continuum.grain_weight;
+  Rezone start;
+  add_grains(start, grid, x, packed);
+  rezone(continuum, zones, start);
+
+  // is x planned, its grains (the volume that would carry `volume_of` at their weight) carrying `grains_carry`
+  auto planned_carrying = [&](double volume_of, double grains_carry) {
+    const std::vector<coupler::CellGrains> volumes{{x, volume_of / weight / kGrainDensity, grains_carry}};
+    bool found = false;
+    for (const auto& plan :
+         continuum.plan_rezone(0.0, coupler::kZonesGiven, zones, coupler::OracleSettings{}, {}, {volumes}))
+      found = found || plan.cell == x;
+    continuum.complete_rezone({});  // no grain made, none in the sums: the points keep the cell
+    return found;
+  };
+  auto planned = [&](double grains_carry) { return planned_carrying(grains_carry, grains_carry); };
+  const double drained = 0.2 * weight * packed;
+  EXPECT_TRUE(planned(drained)) << "most drained out: repaired";
+  EXPECT_FALSE(planned(drained)) << "the same grains and points: the repair would do the same again";
+  EXPECT_FALSE(planned(drained * (1 + 1e-12))) << "round-off in the grains' volume is no change";
+  EXPECT_TRUE(planned(1.2 * drained)) << "a grain came: repaired again";
+  EXPECT_FALSE(planned(1.2 * drained));
+  // the same volume, lighter grains (a heavier one left, a lighter one came): repaired again
+  EXPECT_TRUE(planned_carrying(1.2 * drained, 1.1 * drained));
+  EXPECT_TRUE(planned(1.2 * drained)) << "and back";
+  EXPECT_FALSE(planned(1.2 * drained));
+  // a rezone of the cell for another reason (its zone changes, and back) forgets the repair
+  zones[x] = coupler::kContinuum;
+  EXPECT_TRUE(planned(1.2 * drained));
+  zones[x] = coupler::kHybrid;
+  EXPECT_TRUE(planned(1.2 * drained)) << "the zone changed back";
+  EXPECT_TRUE(planned(1.2 * drained)) << "starved: the first repair since";
+  EXPECT_FALSE(planned(1.2 * drained));
+}
+
 // Grains made in a hybrid cell carry their weight's share of their mass; when they flow on into a
 // discrete cell (the band over a silo's orifice, into the discrete region around it) no zone
 // changes, and they left the silo light. A discrete cell whose grains carry less than

@@ -60,7 +60,6 @@ struct RezoneAtoms {
 /// What a rezone did, over all DEM ranks.
 struct RezoneCounts {
   std::int64_t deleted = 0, made = 0;
-  double oracle_wait = 0.0;    ///< s this rank waited for the new zone map (the oracle)
 };
 
 /// Everything a rezone needs besides the host's atoms.
@@ -75,14 +74,32 @@ struct RezonePlan {
   double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};    ///< the continuum's container
 };
 
-/// A rezone (coupler/protocol.hpp): the zones change (`zones` takes the new map), the material
-/// of every cell whose zone changed moves between grains and points, the grains' support force
-/// after it goes to the MPM process. `support` is the host's per-atom support acceleration
-/// (read after the deletions). Settled outcome: the same on all ranks; on a failure the rezone
-/// stopped at that message.
+/// A rezone's zones, its first round trip (coupler/protocol.hpp): the new zone map and the
+/// cells whose material moves. When none moves, the rezone ended there with its acknowledgement:
+/// the host's atoms stay as they are (no atom made or deleted, no neighbour lists rebuilt).
 template <int D>
-StepOutcome rezone_grains(DemSession &session, MPI_Comm comm, const RezonePlan<D> &plan,
-                          std::vector<signed char> &zones, RezoneAtoms<D> &atoms, double *const *support,
+struct ZoneAnswer {
+  std::vector<signed char> zones;
+  std::vector<RezoneCell<D>> cells;
+  StepAck ack;                 ///< the rezone's acknowledgement when no material moves
+  double oracle_wait = 0.0;    ///< s this rank waited for the zone map (the oracle)
+  bool moves_material() const { return !cells.empty(); }
+};
+
+/// The first round trip of a rezone: this rank's grain volumes per cell go to the MPM process
+/// with the plan's header (and the previous `zones` where the fix gives the zones), the answer
+/// comes back. Settled outcome: the same on all ranks.
+template <int D>
+StepOutcome ask_zones(DemSession &session, const RezonePlan<D> &plan, const std::vector<signed char> &zones,
+                      RezoneAtoms<D> &atoms, ZoneAnswer<D> &answer);
+
+/// The rest of a rezone whose answer moves material (coupler/protocol.hpp): the material of every
+/// moving cell moves between grains and points, the grains' support force after it goes to the
+/// MPM process. `support` is the host's per-atom support acceleration (read after the deletions).
+/// Settled outcome: the same on all ranks; on a failure the rezone stopped at that message.
+template <int D>
+StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D> &plan,
+                          const std::vector<RezoneCell<D>> &cells, RezoneAtoms<D> &atoms, double *const *support,
                           StepAck &ack, RezoneCounts &counts);
 
 /// After a rezone, over all DEM ranks: the carried masses' drift from their share of the solid

@@ -51,7 +51,8 @@ class DemSession {
 
   /// A rezone's first round trip: the header and the zone map (given zones) or the oracle's
   /// settings and the discrete regions' cells (leader), this rank's grain volumes; the new zone
-  /// map (of the grid's `ncells`) and the cells to rezone come back.
+  /// map (of the grid's `ncells`) and the cells to rezone come back, and when there are none the
+  /// acknowledgement that ends the rezone (in `ack`).
   template <int D>
   StepOutcome rezone_zones(const StepHeader &header, const std::vector<signed char> &given_zones,
                            const OracleSettings &oracle, const std::function<std::vector<std::uint64_t>()> &discrete,
@@ -110,6 +111,10 @@ StepOutcome DemSession::rezone_zones(const StepHeader &header, const std::vector
       throw PeerError("protocol error: a zone map of " + std::to_string(zones.size()) + " cells for a grid of " +
                       std::to_string(ncells));
     cells = link_.receive(0, {kTagRezoneCells}, "the cells to rezone" + at_).as_array<RezoneCell<D>>();
+    if (cells.empty()) {    // no material moves: the rezone ends with its acknowledgement
+      ack = link_.receive(0, {kTagStepAck}, "the rezone's acknowledgement" + at_).as<StepAck>();
+      if (ack.status != 0) return peer_failed(ack, "the MPM process could not rezone: ");
+    }
   } catch (const PeerError &e) {
     out.fail(StepOutcome::kNoPeer, e.what());
   }

@@ -187,7 +187,9 @@ enum ZoneSource : std::int32_t {
 //                       OracleSettings (the fix line's, changeable between runs) and the
 //                       cells in the fix's discrete regions (boundaries for the oracle)
 //   every DEM rank      CellGrains[] (its grains' volume, mass and kinetic energy per cell)
-//   MPM -> every rank   the new zone map; RezoneCell<D>[] (cells whose material moves)
+//   MPM -> every rank   the new zone map; RezoneCell<D>[] (cells whose material moves);
+//                       when no cell's material moves, the StepAck, and the rezone ends
+//                       here (the MPM process may then advance to the header's next_time)
 //   every DEM rank      where RezoneCell::make_grains, all DEM ranks together make new grains
 //                       (at their weight times their solid mass, with the points' affine
 //                       velocity); then GrainSums<D>[] of its grains, old and new, in those cells
@@ -262,6 +264,7 @@ struct StepHeader {
   std::int64_t n_grains = 0;         ///< coupled grains over all DEM ranks (for the log)
   /// DEM time of the next exchange if it is certain (same run, no restart file or rezone
   /// before it), else -1: the MPM process may advance to it while LAMMPS computes its steps.
+  /// A rezone's: the next exchange's if the rezone moves no material.
   double next_time = -1;
   std::int32_t zone_source = kZonesOracle;  ///< kStepRezone: ZoneSource
   /// kStepCouple: 1 = answer each node's field share from the local flow regime

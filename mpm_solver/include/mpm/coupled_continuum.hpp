@@ -2,6 +2,8 @@
 // The continuum of a coupled run: an MPM solver whose grid covers the DEM box, whose points
 // are made from grains, and which agrees with the grains on the node velocities of the
 // hybrid zone (docs/design.md section 5). No MPI here: coupled.cpp moves the messages.
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -88,6 +90,22 @@ class CoupledContinuum {
     std::vector<std::size_t> members;
   };
   std::vector<MovingCell> moving_;
+  /// A cell rezoned only to repair its grains (starved in a hybrid zone: no room to make grains;
+  /// light in a discrete one: no points near that can give their missing mass) may be left as it
+  /// was, and would be planned again at every oracle step (a 100 d collapse near rest: the same 2
+  /// cells at every one, each a rezone, its neighbour lists rebuilt). It is repaired again once
+  /// its grains' volume or carried mass or its number of points changed (a grain or a point came
+  /// or left), beyond round-off.
+  struct Repair {
+    double grain_volume = -1;    ///< at its last repair (-1: none since its last other rezone)
+    double grain_mass = 0;
+    std::uint32_t points = 0;
+    bool same(double volume, double mass, std::uint32_t count) const {
+      auto near = [](double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); };
+      return grain_volume >= 0 && count == points && near(volume, grain_volume) && near(mass, grain_mass);
+    }
+  };
+  std::vector<Repair> repairs_;
   /// The grains' carried mass per cell (plan_rezone's sums; complete_rezone sets the moving cells').
   std::vector<double> cell_grain_mass_;
   std::int64_t zone_cells_[3] = {0, 0, 0};
