@@ -151,6 +151,16 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     kinetic[point_cell[p]] += 0.5 * pts.mass[p] * pts.v[p].squaredNorm();
   }
 
+  // material at rest (the oracle's measure, coupler::material_at_rest: below kRestSpeed sqrt(g d);
+  // without gravity nothing is at rest)
+  const double rest_speed =
+      coupler::kRestSpeed * std::sqrt(Eigen::Map<const Eigen::Vector3d>(cs.gravity).norm() * cs.grain_diameter);
+  std::vector<double> material_mass(n);
+  for (std::size_t c = 0; c < n; ++c) material_mass[c] = grain_mass[c] + point_mass[c];
+  const std::vector<std::uint8_t> at_rest = rest_speed > 0
+                                                ? coupler::material_at_rest<D>(geometry, kinetic, material_mass, rest_speed)
+                                                : std::vector<std::uint8_t>(n, 0);
+
   // The new zones
   std::vector<std::int8_t> next;
   if (zone_source == coupler::kZonesGiven) {
@@ -181,14 +191,11 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     in.discrete_cells = discrete_cells;
     in.grain_volume = volume;
     in.has_points = has_points;
-    // material at rest keeps its zones (coupler::hold_zones_at_rest): at rest below kRestSpeed
-    // sqrt(g d); without gravity nothing is held
-    in.rest_speed =
-        coupler::kRestSpeed * std::sqrt(Eigen::Map<const Eigen::Vector3d>(cs.gravity).norm() * cs.grain_diameter);
+    // material at rest keeps its zones (coupler::hold_zones_at_rest)
+    in.rest_speed = rest_speed;
     if (zone_source == coupler::kZonesOracle && os.rest_hold > 0 && in.rest_speed > 0) {
       in.kinetic = std::move(kinetic);  // the hold is its last use
-      in.mass.resize(n);
-      for (std::size_t c = 0; c < n; ++c) in.mass[c] = grain_mass[c] + point_mass[c];
+      in.mass = std::move(material_mass);
     }
     // at the start there are no previous zones to step from: the oracle goes to its fixed point
     if (zone_source != coupler::kZonesInitial) in.previous = zones_;
@@ -220,9 +227,9 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     const bool light = next[c] == coupler::kDiscrete && grains &&
                        grain_mass[c] < coupler::kLightGrains * cs.grain_density * volume[c] && carriers_near(c);
     if (next[c] == zones_[c] && !stray && !starved && !light) continue;
-    // a repair (the zone stays, its grains starved or light) of a cell whose grains and points
-    // are those of its last repair: the rezone would do what it did then, and that left it so
-    const bool repair = next[c] == zones_[c] && !stray;
+    // a repair (the zone stays, its grains starved or light) of a cell at rest whose grains and
+    // points are those of its last repair: the rezone would do what it did then, and that left it so
+    const bool repair = next[c] == zones_[c] && !stray && at_rest[c];
     if (repair && repairs_[c].same(volume[c], grain_mass[c], point_count[c])) continue;
     repairs_[c] = repair ? Repair{volume[c], grain_mass[c], point_count[c]} : Repair{};
 

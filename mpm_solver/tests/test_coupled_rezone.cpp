@@ -229,12 +229,13 @@ TEST(CoupledRezone, HybridCellDrainedOfItsGrainsMakesThemAgain) {
   EXPECT_EQ(planned(0.3 * weight * packed), 2) << "most drained out: grains made again";
 }
 
-// A repair that leaves the cell as it was (here: no grain could be made in the starved cell, so
-// none comes back in the grain sums) is not planned again at every oracle step while the cell's
-// grains and points stay the same (a 100 d collapse near rest replanned the same 2 cells at
-// every one); it is once a grain comes or goes.
+// A repair of material at rest that leaves the cell as it was (here: no grain could be made in
+// the starved cell, so none comes back in the grain sums) is not planned again at every oracle
+// step while the cell's grains and points stay the same (a 100 d collapse near rest replanned the
+// same 2 cells at every one); it is once a grain comes or goes, and always while it moves.
 TEST(CoupledRezone, ARepairThatChangedNothingWaitsForTheCellsGrainsToChange) {
-  const coupler::Hello hello = square_box();
+  coupler::Hello hello = square_box();
+  hello.continuum.gravity[1] = -9.81;  // (without gravity nothing is at rest)
   mpm::CoupledContinuum<2> continuum(hello);
   const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
   std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
@@ -246,8 +247,9 @@ TEST(CoupledRezone, ARepairThatChangedNothingWaitsForTheCellsGrainsToChange) {
   rezone(continuum, zones, start);
 
   // is x planned, its grains (the volume that would carry `volume_of` at their weight) carrying `grains_carry`
+  double kinetic = 0;  // of the grains in x
   auto planned_carrying = [&](double volume_of, double grains_carry) {
-    const std::vector<coupler::CellGrains> volumes{{x, volume_of / weight / kGrainDensity, grains_carry}};
+    const std::vector<coupler::CellGrains> volumes{{x, volume_of / weight / kGrainDensity, grains_carry, kinetic}};
     bool found = false;
     for (const auto& plan :
          continuum.plan_rezone(0.0, coupler::kZonesGiven, zones, coupler::OracleSettings{}, {}, {volumes}))
@@ -273,6 +275,10 @@ TEST(CoupledRezone, ARepairThatChangedNothingWaitsForTheCellsGrainsToChange) {
   EXPECT_TRUE(planned(1.2 * drained)) << "the zone changed back";
   EXPECT_TRUE(planned(1.2 * drained)) << "starved: the first repair since";
   EXPECT_FALSE(planned(1.2 * drained));
+  // grains moving at 10 rest speeds (a flow): repaired every time
+  kinetic = 0.5 * 1.2 * drained * std::pow(10 * coupler::kRestSpeed * std::sqrt(9.81 * hello.continuum.grain_diameter), 2);
+  EXPECT_TRUE(planned(1.2 * drained));
+  EXPECT_TRUE(planned(1.2 * drained));
 }
 
 // Grains made in a hybrid cell carry their weight's share of their mass; when they flow on into a

@@ -93,9 +93,12 @@ class CoupledContinuum {
   /// A cell rezoned only to repair its grains (starved in a hybrid zone: no room to make grains;
   /// light in a discrete one: no points near that can give their missing mass) may be left as it
   /// was, and would be planned again at every oracle step (a 100 d collapse near rest: the same 2
-  /// cells at every one, each a rezone, its neighbour lists rebuilt). It is repaired again once
-  /// its grains' volume or carried mass or its number of points changed (a grain or a point came
-  /// or left), beyond round-off.
+  /// cells at every one, each a rezone, its neighbour lists rebuilt, and the deposit came to rest
+  /// a tenth later). Where its material is at rest (coupler::material_at_rest) it is repaired
+  /// again once its grains' volume or carried mass or its number of points changed (a grain or a
+  /// point came or left), beyond round-off; moving material is repaired at every oracle step (the
+  /// repair also gives grains and points the cell's motion: skipping it in a flow changed a 100 d
+  /// collapse's runout from +1.7 % to -6 %).
   struct Repair {
     double grain_volume = -1;    ///< at its last repair (-1: none since its last other rezone)
     double grain_mass = 0;
