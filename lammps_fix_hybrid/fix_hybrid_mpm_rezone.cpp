@@ -224,7 +224,8 @@ void FixHybridMPM::ask_oracle()
   const coupler::StepOutcome outcome = coupler::ask_zones<D>(*session, plan, zones, atoms, *answer);
   if (!outcome.ok()) error->all(FLERR, "Fix hybrid/mpm: " + outcome.what);
   const double wait = answer->oracle_wait;
-  if (answer->moves_material()) {
+  const bool moves = answer->moves_material();
+  if (moves) {
     zone_answer<D>() = std::move(answer);
     rezone_pending = true;
     rezone_source = coupler::kZonesOracle;
@@ -237,7 +238,7 @@ void FixHybridMPM::ask_oracle()
     report_rezone(coupler::kZonesOracle, coupler::RezoneCounts{}, answer->ack,
                   coupler::rezone_aftermath(grains(), grain_rules(), 0, world), grains_now, grains_now);
   }
-  run_log->charge_rezone(start, wait);
+  run_log->charge_rezone(start, wait, !moves);    // a rezone that goes on is counted at its end
 }
 
 template <int D>

@@ -28,9 +28,10 @@ void DemRunLog::charge_exchange(double start, double sent, double replied, doubl
   all_.exchanges++;
 }
 
-void DemRunLog::charge_rezone(double start, double oracle_wait) {
+void DemRunLog::charge_rezone(double start, double oracle_wait, bool ends) {
   charge(kTimeOracle, oracle_wait);
   charge(kTimeRezone, MPI_Wtime() - start - oracle_wait);
+  if (!ends) return;
   run_.rezones++;
   all_.rezones++;
 }

@@ -77,9 +77,17 @@ TEST(DemRunLog, RezoneTimeLeavesTheOracleWaitApart) {
   EXPECT_DOUBLE_EQ(log.run_timing().seconds[coupler::kTimeOracle], 0.5);
   EXPECT_NEAR(log.run_timing().seconds[coupler::kTimeRezone], 1.5, 0.1);
   EXPECT_EQ(log.run_timing().rezones, 1);
+  // another: its oracle's part (0.25 s, all of it the wait) at post_integrate, the rest (0.5 s) at
+  // pre_exchange; one rezone
+  log.charge_rezone(MPI_Wtime() - 0.25, 0.25, false);
+  EXPECT_EQ(log.run_timing().rezones, 1);
+  log.charge_rezone(MPI_Wtime() - 0.5, 0.0);
+  EXPECT_DOUBLE_EQ(log.run_timing().seconds[coupler::kTimeOracle], 0.75);
+  EXPECT_NEAR(log.run_timing().seconds[coupler::kTimeRezone], 2.0, 0.1);
+  EXPECT_EQ(log.run_timing().rezones, 2);
   double out[coupler::kVecSize] = {};
   log.thermo_times(MPI_COMM_WORLD, out);
-  EXPECT_NEAR(out[coupler::kVecTimeRezone], 2.0, 0.1);    // with the oracle's wait
+  EXPECT_NEAR(out[coupler::kVecTimeRezone], 2.75, 0.1);    // with the oracle's wait
   EXPECT_DOUBLE_EQ(out[coupler::kVecTimeMpmWait], 0.0);
 }
 

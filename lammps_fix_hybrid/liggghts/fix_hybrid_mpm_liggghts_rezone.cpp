@@ -214,7 +214,8 @@ void FixHybridMPMLiggghts::post_integrate()
   const coupler::StepOutcome outcome = coupler::ask_zones<3>(*session, plan, zones, atoms, *answer);
   if (!outcome.ok()) fail(outcome.what);
   const double wait = answer->oracle_wait;
-  if (answer->moves_material()) {
+  const bool moves = answer->moves_material();
+  if (moves) {
     zone_answer = std::move(answer);
     rezone_pending = true;
     rezone_source = coupler::kZonesOracle;
@@ -227,7 +228,7 @@ void FixHybridMPMLiggghts::post_integrate()
     report_rezone(coupler::kZonesOracle, coupler::RezoneCounts{}, answer->ack,
                   coupler::rezone_aftermath(grains(), grain_rules(), 0, world), grains_now, grains_now);
   }
-  run_log->charge_rezone(start, wait);
+  run_log->charge_rezone(start, wait, !moves);    // a rezone that goes on is counted at its end
 }
 
 void FixHybridMPMLiggghts::check_finite_atoms(const char *before) const

@@ -37,9 +37,10 @@ class DemRunLog {
   /// reply at `replied` and ended at `end`; inside the round trip it spent `applying` on the
   /// grains' updates and `framing` on the output frame's grains (coupler::ExchangeTally).
   void charge_exchange(double start, double sent, double replied, double end, double applying, double framing);
-  /// A rezone that started at `start` (MPI_Wtime) and ends now, `oracle_wait` of it waiting for
-  /// the zone map.
-  void charge_rezone(double start, double oracle_wait);
+  /// A rezone, or its part, that started at `start` (MPI_Wtime) and ends now, `oracle_wait` of it
+  /// waiting for the zone map; counted once, by the part that ends it (`ends`: the oracle's answer
+  /// at post_integrate is a part when its rezone goes on at pre_exchange).
+  void charge_rezone(double start, double oracle_wait, bool ends = true);
 
   /// A rezone happened (every rank calls this): counted in the summaries. Returns its two lines
   /// (each ending in a newline) where the log shows them: every rezone with `full`, the conversion
