@@ -151,15 +151,13 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     kinetic[point_cell[p]] += 0.5 * pts.mass[p] * pts.v[p].squaredNorm();
   }
 
-  // material at rest (the oracle's measure, coupler::material_at_rest: below kRestSpeed sqrt(g d);
-  // without gravity nothing is at rest)
+  // still material (the oracle's measure of rest, coupler::material_still: below kRestSpeed
+  // sqrt(g d); without gravity only empty cells are still)
   const double rest_speed =
       coupler::kRestSpeed * std::sqrt(Eigen::Map<const Eigen::Vector3d>(cs.gravity).norm() * cs.grain_diameter);
   std::vector<double> material_mass(n);
   for (std::size_t c = 0; c < n; ++c) material_mass[c] = grain_mass[c] + point_mass[c];
-  const std::vector<std::uint8_t> at_rest = rest_speed > 0
-                                                ? coupler::material_at_rest<D>(geometry, kinetic, material_mass, rest_speed)
-                                                : std::vector<std::uint8_t>(n, 0);
+  const std::vector<std::uint8_t> still = coupler::material_still(kinetic, material_mass, rest_speed);
 
   // The new zones
   std::vector<std::int8_t> next;
@@ -229,7 +227,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     if (next[c] == zones_[c] && !stray && !starved && !light) continue;
     // a repair (the zone stays, its grains starved or light) of a cell at rest whose grains and
     // points are those of its last repair: the rezone would do what it did then, and that left it so
-    const bool repair = next[c] == zones_[c] && !stray && at_rest[c];
+    const bool repair = next[c] == zones_[c] && !stray && coupler::still_around<D>(geometry, still, c);
     if (repair && repairs_[c].same(volume[c], grain_mass[c], point_count[c])) continue;
     repairs_[c] = repair ? Repair{volume[c], grain_mass[c], point_count[c]} : Repair{};
 

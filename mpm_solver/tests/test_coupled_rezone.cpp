@@ -71,6 +71,20 @@ coupler::StepAck rezone(mpm::CoupledContinuum<2>& continuum, const std::vector<s
   return continuum.totals(0);
 }
 
+/// Makes the cell (5, 5) hybrid from grains of `mass` at rest (`zones` takes the map: all other
+/// cells discrete); returns the cell, `points` the mass its points took.
+std::uint64_t hybrid_cell_of_grains(mpm::CoupledContinuum<2>& continuum, std::vector<std::int8_t>& zones, double mass,
+                                    double& points) {
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  zones.assign(coupler::num_cells(grid), coupler::kDiscrete);
+  const std::uint64_t x = coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(5.5, 5.5)));
+  zones[x] = coupler::kHybrid;
+  Rezone start;
+  add_grains(start, grid, x, mass);
+  points = rezone(continuum, zones, start).mass;
+  return x;
+}
+
 /// Makes the cells 3 to 8 of both axes continuum, their points from grains of `mass` a cell moving
 /// at velocity(j) in row j.
 template <class Velocity>
@@ -204,14 +218,10 @@ TEST(CoupledRezone, KeptRestWaitsInTheSamePoints) {
 TEST(CoupledRezone, HybridCellDrainedOfItsGrainsMakesThemAgain) {
   const coupler::Hello hello = square_box();
   mpm::CoupledContinuum<2> continuum(hello);
-  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
-  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
-  const std::uint64_t x = coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(5.5, 5.5)));
-  zones[x] = coupler::kHybrid;
+  std::vector<std::int8_t> zones;
   const double packed = 0.8 * kSolidContent, weight = hello.continuum.grain_weight;
-  Rezone start;
-  add_grains(start, grid, x, packed);
-  const double points = rezone(continuum, zones, start).mass;  // the points take the rest of the cell
+  double points = 0;  // the points take the rest of the cell
+  const std::uint64_t x = hybrid_cell_of_grains(continuum, zones, packed, points);
   ASSERT_NEAR(points, (1 - weight) * packed, 1e-12 * packed);
 
   auto planned = [&](double grains_carry) {  // is x planned, and to make grains, with its grains carrying this
@@ -237,14 +247,10 @@ TEST(CoupledRezone, ARepairThatChangedNothingWaitsForTheCellsGrainsToChange) {
   coupler::Hello hello = square_box();
   hello.continuum.gravity[1] = -9.81;  // (without gravity nothing is at rest)
   mpm::CoupledContinuum<2> continuum(hello);
-  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
-  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
-  const std::uint64_t x = coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(5.5, 5.5)));
-  zones[x] = coupler::kHybrid;
+  std::vector<std::int8_t> zones;
   const double packed = 0.8 * kSolidContent, weight = hello.continuum.grain_weight;
-  Rezone start;
-  add_grains(start, grid, x, packed);
-  rezone(continuum, zones, start);
+  double points = 0;
+  const std::uint64_t x = hybrid_cell_of_grains(continuum, zones, packed, points);
 
   // is x planned, its grains (the volume that would carry `volume_of` at their weight) carrying `grains_carry`
   double kinetic = 0;  // of the grains in x

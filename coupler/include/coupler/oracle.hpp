@@ -384,24 +384,36 @@ void drop_hybrid_without_continuum(const GridGeometry<D>& grid, const std::vecto
     if (zones[c] == kHybrid && (!any || to_continuum[c] > reach * reach)) zones[c] = kDiscrete;
 }
 
-/// Material at rest, per cell: the cell and each of its 3^D neighbours either hold no material
-/// or move with a mean square speed (kinetic energy over mass, grains and points together) below
-/// rest_speed^2. The neighbours count so that material about to arrive (an avalanche reaching a
-/// resting cell) keeps a cell from being held.
+/// Per cell: no material, or material moving with a mean square speed (kinetic energy over mass,
+/// grains and points together) below rest_speed^2.
+inline std::vector<std::uint8_t> material_still(const std::vector<double>& kinetic, const std::vector<double>& mass,
+                                                double rest_speed) {
+  if (kinetic.size() != mass.size()) throw std::invalid_argument("material_at_rest: input of the wrong size");
+  const double limit = 0.5 * rest_speed * rest_speed;  // kinetic energy per unit mass
+  std::vector<std::uint8_t> still(mass.size());
+  for (std::size_t c = 0; c < mass.size(); ++c) still[c] = mass[c] <= 0 || kinetic[c] < limit * mass[c];
+  return still;
+}
+
+/// Whether the material of cell `c` is at rest: it and each of its 3^D neighbours are still
+/// (material_still). The neighbours count so that material about to arrive (an avalanche reaching
+/// a resting cell) keeps a cell from being held.
+template <int D>
+bool still_around(const GridGeometry<D>& grid, const std::vector<std::uint8_t>& still, std::uint64_t c) {
+  bool all = still[c] != 0;
+  if (all) for_each_cell_within<D>(grid, cell_coords<D>(grid, c), 1, [&](std::uint64_t k) { all = all && still[k]; });
+  return all;
+}
+
+/// Material at rest, per cell (still_around of material_still).
 template <int D>
 std::vector<std::uint8_t> material_at_rest(const GridGeometry<D>& grid, const std::vector<double>& kinetic,
                                            const std::vector<double>& mass, double rest_speed) {
   const std::size_t n = num_cells(grid);
   if (kinetic.size() != n || mass.size() != n) throw std::invalid_argument("material_at_rest: input of the wrong size");
-  std::vector<std::uint8_t> still(n), at_rest(n, 0);
-  const double limit = 0.5 * rest_speed * rest_speed;  // kinetic energy per unit mass
-  for (std::size_t c = 0; c < n; ++c) still[c] = mass[c] <= 0 || kinetic[c] < limit * mass[c];
-  for (std::size_t c = 0; c < n; ++c) {
-    if (!still[c]) continue;
-    bool all = true;
-    for_each_cell_within<D>(grid, cell_coords<D>(grid, c), 1, [&](std::uint64_t k) { all = all && still[k]; });
-    at_rest[c] = all;
-  }
+  const std::vector<std::uint8_t> still = material_still(kinetic, mass, rest_speed);
+  std::vector<std::uint8_t> at_rest(n, 0);
+  for (std::size_t c = 0; c < n; ++c) at_rest[c] = still_around<D>(grid, still, c);
   return at_rest;
 }
 
