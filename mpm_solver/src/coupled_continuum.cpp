@@ -381,7 +381,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     material.add(m.points);
     const auto& cs = hello_.continuum;
     for (const auto& p : coupler::points_from_moments<D>(total[k].scaled(part), geometry, cs.points_per_axis, part,
-                                                         material.velocity_gradient(centre),
+                                                         material.affine_motion(centre),
                                                          Eigen::Map<const Eigen::Vector3d>(cs.container_lo).head<D>(),
                                                          Eigen::Map<const Eigen::Vector3d>(cs.container_hi).head<D>())) {
       solver_.add_point(p.x, p.v, p.C, p.mass, p.volume, p.stress);

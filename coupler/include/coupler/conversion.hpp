@@ -12,6 +12,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/Geometry>  // Vector3d::cross
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -222,6 +223,26 @@ Eigen::Matrix<double, D, D> velocity_gradient(double mass, const Eigen::Matrix<d
   return A * B.inverse();
 }
 
+/// A material's affine motion as new points take it over: its bodies' velocity gradient and the
+/// kinetic energy per unit mass that gradient carries at the bodies (about their centre of mass).
+/// points_from_moments gives the points the gradient with at most that energy: on a lattice over
+/// the whole cell, with APIC's inertia dx^2/4 per mass, the same gradient carries 3.75x the energy
+/// of grains filling the cell, and without bound where the bodies span little of it (a few grains
+/// nearly in a row at a cell's corner: a 100 d collapse made points at 150 m/s in a flow of 1 m/s).
+template <int D>
+struct AffineMotion {
+  Eigen::Matrix<double, D, D> gradient = Eigen::Matrix<double, D, D>::Zero();
+  double energy_per_mass = HUGE_VAL;  ///< J/kg; the default: no bound
+};
+
+/// Kinetic energy per unit mass of the affine field G over bodies of mass M whose second moment
+/// about their centre of mass is B (sum m r r^T): tr(G B G^T) / (2 M).
+template <int D>
+double affine_energy_per_mass(const Eigen::Matrix<double, D, D>& G, const Eigen::Matrix<double, D, D>& B,
+                              double mass) {
+  return mass > 0 ? 0.5 * (G * B * G.transpose()).trace() / mass : 0.0;
+}
+
 /// Shear rate of a velocity gradient: sqrt(2 D:D), D its symmetric part.
 template <int D>
 double shear_rate(const Eigen::Matrix<double, D, D>& gradient) {
@@ -269,6 +290,17 @@ struct BodySums {
   Mat velocity_gradient(const Vec& reference) const {
     return coupler::velocity_gradient<D>(moments.mass, moments.first_moment(), moments.momentum(), velocity_moment(),
                                          position_moment(), reference);
+  }
+  /// That gradient with the energy it carries at the bodies (AffineMotion); `reference` as above.
+  AffineMotion<D> affine_motion(const Vec& reference) const {
+    AffineMotion<D> a;
+    a.gradient = velocity_gradient(reference);
+    a.energy_per_mass = 0;
+    if (!(moments.mass > 0)) return a;
+    const Vec R = moments.first_moment() / moments.mass - reference;
+    a.energy_per_mass = affine_energy_per_mass<D>(a.gradient, Mat(position_moment() - moments.mass * R * R.transpose()),
+                                                  moments.mass);
+    return a;
   }
 };
 static_assert(std::is_trivially_copyable_v<BodySums<2>> && std::is_trivially_copyable_v<BodySums<3>>,
@@ -413,21 +445,23 @@ Eigen::Matrix<double, D, 1> cell_center(const GridGeometry<D>& grid, const Eigen
 }
 
 /// per_axis^D points on a regular lattice in cell m.cell with equal masses,
-/// carrying m's mass, momentum and angular momentum exactly. volume_share in
+/// carrying m's mass, centre of mass, momentum and angular momentum exactly. volume_share in
 /// [0, 1] is the share of the cell the points fill (m already scaled by it):
 /// volume = share dx^D / n, stress = m.stress_volume / (share dx^D), so the
 /// points' sum of stress*volume is m.stress_volume and their stress is the
 /// unscaled cell stress S/dx^D. Empty if m.mass <= 0.
 ///
-/// The lattice starts with the prior affine field `gradient` (v = G r_p, C = G; e.g. the
-/// grains' velocity gradient) and takes the rigid correction onto m (APIC points have their
-/// own inertia dx^2/2 per mass): v_p = G r_p + a + Omega x r_p, C_p = G + skew(Omega).
+/// The lattice starts with the prior affine field (v = G r_p, C = G; e.g. the grains' velocity
+/// gradient) and takes the rigid correction onto m (APIC points have their own inertia dx^2/2 per
+/// mass): v_p = G r_p + a + Omega x r_p, C_p = G + skew(Omega). G is the prior's gradient scaled
+/// down where the points would carry more affine kinetic energy per mass (APIC's dx^2/4 |C|^2
+/// with it) than the prior's bound (AffineMotion) and than Omega alone gives them.
 /// The lattice fills the part of the cell inside the box [within_lo, within_hi] (the continuum's
 /// container: a wall off the cell lattice must not get points behind it).
 template <int D>
 std::vector<NewPoint<D>> points_from_moments(
     const CellMoments<D>& m, const GridGeometry<D>& grid, int per_axis, double volume_share,
-    const Eigen::Matrix<double, D, D>& gradient = Eigen::Matrix<double, D, D>::Zero(),
+    const AffineMotion<D>& prior = {},
     const Eigen::Matrix<double, D, 1>& within_lo = Eigen::Matrix<double, D, 1>::Constant(-HUGE_VAL),
     const Eigen::Matrix<double, D, 1>& within_hi = Eigen::Matrix<double, D, 1>::Constant(HUGE_VAL)) {
   using Vec = Eigen::Matrix<double, D, 1>;
@@ -445,25 +479,63 @@ std::vector<NewPoint<D>> points_from_moments(
   }
   const Mat stress = volume_share > 0 ? Mat(m.stress_volume() / (volume_share * cell_volume)) : Mat(Mat::Zero());
 
+  // The lattice is centred on m's centre of mass, drawn in to stay within the cell (its part inside
+  // the container): made about the cell's centre instead, the points moved the material's centre
+  // of mass by up to half a cell (a cell of grains at a free surface holds them at its bottom),
+  // which the exact angular momentum turned into a spin (M dX x V over the lattice's inertia) and
+  // gravity into potential energy, at every conversion.
+  const Vec box_centre = lower + 0.5 * span;
+  const Vec half = 0.5 * (1 - 1e-9) * span;  // (points on the cell's faces would fall into the next cell)
+  const Vec com = (m.first_moment() / m.mass).cwiseMax(box_centre - half).cwiseMin(box_centre + half);
   std::vector<NewPoint<D>> points(static_cast<std::size_t>(n));
-  BodySums<D> at_rest;
-  for (int p = 0; p < n; ++p) {
-    Vec x;
-    for (int a = D - 1, k = p; a >= 0; --a, k /= per_axis) x[a] = lower[a] + (k % per_axis + 0.5) / per_axis * span[a];
-    points[p].x = x;
-    points[p].mass = m.mass / n;
-    points[p].v = gradient * (x - centre);  // the prior field (the rigid correction below makes the sums exact)
-    const Spin<D> spin = (points[p].mass * grid.dx * grid.dx / kQuadraticInverseInertia) * axial<D>(gradient);
-    at_rest.add_body(x, points[p].v, points[p].mass, spin, grid.dx * grid.dx / 2, Mat::Zero(), centre);
+  for (int a = 0; a < D; ++a) {
+    const double reach = half[a] * (1.0 - 1.0 / per_axis);  // the lattice's farthest offset, drawn in
+    const double draw = reach > 0 ? std::min(1.0, (half[a] - std::abs(com[a] - box_centre[a])) / reach) : 0.0;
+    for (int p = 0; p < n; ++p) {
+      int k = p;
+      for (int b = D - 1; b > a; --b) k /= per_axis;
+      points[p].x[a] = com[a] + draw * ((k % per_axis + 0.5) / per_axis - 0.5) * 2 * half[a];
+    }
   }
-  const RigidCorrection<D> fix = rigid_correction<D>(at_rest, m, centre);
-  for (NewPoint<D>& pt : points) {
-    pt.v += fix.increment(pt.x);
-    pt.C = gradient + skew<D>(fix.omega);
-    pt.stress = stress;
-    pt.mass *= fix.mass_factor;
-    pt.volume = volume_share * cell_volume / n;
-  }
+  const double inertia = grid.dx * grid.dx / kQuadraticInverseInertia;  // APIC's, per mass and axis
+  // The lattice with the prior field scaled by `scale`, corrected rigidly onto m; returns its
+  // affine kinetic energy per mass (about its mean velocity, with APIC's part).
+  auto lay = [&](double scale) {
+    const Mat G = scale * prior.gradient;
+    BodySums<D> at_rest;
+    for (NewPoint<D>& pt : points) {
+      pt.mass = m.mass / n;
+      pt.v = G * (pt.x - centre);  // the prior field (the rigid correction below makes the sums exact)
+      const Spin<D> spin = (pt.mass * inertia) * axial<D>(G);
+      at_rest.add_body(pt.x, pt.v, pt.mass, spin, grid.dx * grid.dx / 2, Mat::Zero(), centre);
+    }
+    const RigidCorrection<D> fix = rigid_correction<D>(at_rest, m, centre);
+    Vec mean = Vec::Zero();
+    for (NewPoint<D>& pt : points) {
+      pt.v += fix.increment(pt.x);
+      pt.C = G + skew<D>(fix.omega);
+      pt.stress = stress;
+      pt.mass *= fix.mass_factor;
+      pt.volume = volume_share * cell_volume / n;
+      mean += pt.v / n;
+    }
+    double energy = 0;
+    for (const NewPoint<D>& pt : points) energy += 0.5 * ((pt.v - mean).squaredNorm() + inertia * pt.C.squaredNorm()) / n;
+    return energy;
+  };
+  // That energy is quadratic in the scale. The points take the largest scale up to 1 whose energy is
+  // at most the prior's, or than what the rigid correction alone gives them (the material's angular
+  // momentum, which the lattice carries with at least the bodies' inertia).
+  const double full = lay(1.0);
+  if (!(full > prior.energy_per_mass)) return points;
+  const double none = lay(0.0), midway = lay(0.5);
+  const double a2 = 2 * (full + none - 2 * midway), a1 = full - none - a2;
+  const double target = std::max(prior.energy_per_mass, none);
+  // the largest root of a2 s^2 + a1 s + (none - target) = 0 in [0, 1) (full > target >= none)
+  double scale = 0;
+  if (a2 > 0) scale = (-a1 + std::sqrt(std::max(0.0, a1 * a1 - 4 * a2 * (none - target)))) / (2 * a2);
+  else if (a1 > 0) scale = (target - none) / a1;
+  lay(std::clamp(scale, 0.0, 1.0));
   return points;
 }
 
