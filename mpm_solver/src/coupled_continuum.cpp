@@ -543,8 +543,12 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     }
     corrections.push_back(gc);
   }
-  remove_points(pts, remove);
-  solver_.sort_points_by_cell();
+  // new points go to their cells' places in the order; a rezone that made or removed none (most
+  // of the oracle's steps once the material rests) leaves it to the solver's periodic sort
+  if (points_made_ > 0 || points_removed_ > 0) {
+    remove_points(pts, remove);
+    solver_.sort_points_by_cell();
+  }
   moving_.clear();
   const double rezone_change = point_energy() - rezone_start_energy_;
   ledger_.rezone += rezone_change;

@@ -361,7 +361,8 @@ void points_from_few_grains_make_no_energy() {
   bodies.moments.cell = coupler::cell_index(grid, c);
   double energy = 0;
   for (int k = 0; k <= D; ++k) {
-    Vec<D> x = corner + Vec<D>::Constant(r), v = Vec<D>::Zero();
+    Vec<D> x = corner + Vec<D>::Constant(1.5 * r), v = Vec<D>::Zero();  // (their centre of mass: not within
+                                                                         // the lattice's margin of the faces)
     x[0] += 2 * r * k;                // a row along x ...
     if (k >= 2) x[k - 1] += (D == 2 ? 0.02 : 0.2) * r;  // ... nearly (in 3D the fit needs more)
     v[0] = 1.0, v[D - 1] = k % 2 == 0 ? 0.3 : -0.3;

@@ -484,17 +484,19 @@ std::vector<NewPoint<D>> points_from_moments(
   // of mass by up to half a cell (a cell of grains at a free surface holds them at its bottom),
   // which the exact angular momentum turned into a spin (M dX x V over the lattice's inertia) and
   // gravity into potential energy, at every conversion.
+  // The points keep a quarter of their spacing from the faces (half the lattice's own margin):
+  // drawn onto a face, a point at a wall crossed it by round-off.
   const Vec box_centre = lower + 0.5 * span;
-  const Vec half = 0.5 * (1 - 1e-9) * span;  // (points on the cell's faces would fall into the next cell)
+  const Vec half = 0.5 * (1 - 0.5 / per_axis) * span;
   const Vec com = (m.first_moment() / m.mass).cwiseMax(box_centre - half).cwiseMin(box_centre + half);
   std::vector<NewPoint<D>> points(static_cast<std::size_t>(n));
   for (int a = 0; a < D; ++a) {
-    const double reach = half[a] * (1.0 - 1.0 / per_axis);  // the lattice's farthest offset, drawn in
+    const double reach = 0.5 * span[a] * (1.0 - 1.0 / per_axis);  // the lattice's farthest offset
     const double draw = reach > 0 ? std::min(1.0, (half[a] - std::abs(com[a] - box_centre[a])) / reach) : 0.0;
     for (int p = 0; p < n; ++p) {
       int k = p;
       for (int b = D - 1; b > a; --b) k /= per_axis;
-      points[p].x[a] = com[a] + draw * ((k % per_axis + 0.5) / per_axis - 0.5) * 2 * half[a];
+      points[p].x[a] = com[a] + draw * ((k % per_axis + 0.5) / per_axis - 0.5) * span[a];
     }
   }
   const double inertia = grid.dx * grid.dx / kQuadraticInverseInertia;  // APIC's, per mass and axis
