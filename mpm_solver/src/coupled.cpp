@@ -427,6 +427,18 @@ class ServeLedger {
   double seconds_[kCount] = {};
 };
 
+/// The end-of-run line of what the rezones did to the points' energy (CoupledContinuum::RezoneEnergy).
+template <class Energy>
+std::string rezone_energy_text(const Energy& e) {
+  auto term = [](const char* name, const typename Energy::Parts& p) {
+    return std::string(name) + " " + format_digits(p.total(), 4) + " (kinetic " + format_digits(p.kinetic, 4) +
+           ", potential " + format_digits(p.potential, 4) + ", elastic " + format_digits(p.elastic, 4) + ")";
+  };
+  return "the rezones' energy on the points (J, J/m in 2D): " + term("made", e.made) + ", " +
+         term("removed", e.removed) + ", " + term("corrected", e.corrected) + ", " + term("rests", e.rests) +
+         "; in all " + format_digits(e.total(), 4);
+}
+
 /// Serves the coupled run until Finish (returns 0), an AbortNote (returns 1) or a failure it
 /// reported to the DEM ranks (returns 2). `step` follows the last step header.
 template <int D>
@@ -562,6 +574,7 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
                    std::to_string(f.step) + " after " + std::to_string(steps) +
                    " exchange(s); " + std::to_string(built->solver().points().size()) + " material points");
       say(opt, ledger.summary());
+      say(opt, rezone_energy_text(built->rezone_energy()));
       link.mark(coupler::Link::State::kFinished);
       return 0;
     } else {

@@ -376,6 +376,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   std::vector<std::vector<std::size_t>> own(moving_.size());  // the points each cell keeps or made
   auto make_points = [&](std::size_t k, double part, float label) {
     const MovingCell& m = moving_[k];
+    const std::size_t first = own[k].size();
     const Vec<D> centre = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, m.plan.cell));
     coupler::BodySums<D> material = carried[k];  // new points move with the material's affine field
     material.add(m.points);
@@ -390,6 +391,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
       remove.push_back(0);
       ++points_made_;
     }
+    rezone_energy_.made += energy_parts({own[k].begin() + static_cast<std::ptrdiff_t>(first), own[k].end()});
   };
   // the points' weight label is their zone's share (1 for points a discrete cell keeps)
   auto label_of = [&](const MovingCell& m) {
@@ -409,7 +411,9 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     }
     if (!(s.points > 0)) continue;
     if (P.moments.mass > 0 && !thin) {
+      const auto before = energy_parts(m.members);
       correct_points(m.members, coupler::rigid_correction<D>(P, total[k].scaled(s.points), centre));
+      rezone_energy_.corrected += energy_parts(m.members) - before;
       for (std::size_t p : m.members) pts.weight[p] = label_of(m);
       own[k] = m.members;
     } else if (total[k].mass > 0) {
@@ -466,7 +470,9 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
       return coupler::rigid_correction<D>(now, target, centre);
     };
     auto give = [&](const std::vector<std::size_t>& members, const coupler::CellMoments<D>& part) {
+      const auto before = energy_parts(members);
       correct_points(members, correction(members, part));
+      rezone_energy_.rests += energy_parts(members) - before;
     };
     // Of the reaches whose carriers hold enough mass, the one whose correction creates the least
     // kinetic energy: moving a rest keeps its angular momentum exactly by spinning the carriers
@@ -512,7 +518,9 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
           // there and lost their deformation, and the run made and removed them again and again.
           for (std::size_t p : m.members) remove[p] = 0, pts.weight[p] = 1.0f;
           points_removed_ -= static_cast<std::int64_t>(m.members.size());
+          const auto before = energy_parts(m.members);
           correct_points(m.members, coupler::rigid_correction<D>(m.points, left, centre));
+          rezone_energy_.rests += energy_parts(m.members) - before;
           own[k] = m.members;
         } else {
           make_points(k, remainder, 1.0f);
@@ -546,6 +554,10 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   // new points go to their cells' places in the order; a rezone that made or removed none (most
   // of the oracle's steps once the material rests) leaves it to the solver's periodic sort
   if (points_made_ > 0 || points_removed_ > 0) {
+    std::vector<std::size_t> removed;
+    for (std::size_t p = 0; p < remove.size(); ++p)
+      if (remove[p]) removed.push_back(p);
+    rezone_energy_.removed += typename RezoneEnergy::Parts{} - energy_parts(removed);
     remove_points(pts, remove);
     solver_.sort_points_by_cell();
   }
@@ -871,6 +883,21 @@ double CoupledContinuum<D>::elastic_energy() const {
   for (std::size_t p = 0; p < pts.size(); ++p)
     energy += pts.volume(p) * models[pts.material[p]].template elastic_energy_density<D>(pts.stress[p]);
   return energy;
+}
+
+template <int D>
+typename CoupledContinuum<D>::RezoneEnergy::Parts CoupledContinuum<D>::energy_parts(
+    const std::vector<std::size_t>& members) const {
+  const auto& pts = solver_.points();
+  const auto& models = solver_.materials();
+  const double dx = solver_.grid().dx, inertia = 0.25 * dx * dx;  // APIC's (point_energy)
+  typename RezoneEnergy::Parts parts;
+  for (std::size_t p : members) {
+    parts.kinetic += 0.5 * pts.mass[p] * (pts.v[p].squaredNorm() + inertia * pts.C[p].squaredNorm());
+    parts.potential += potential(pts.mass[p], pts.x[p]);
+    parts.elastic += pts.volume(p) * models[pts.material[p]].template elastic_energy_density<D>(pts.stress[p]);
+  }
+  return parts;
 }
 
 template <int D>

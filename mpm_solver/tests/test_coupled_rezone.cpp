@@ -173,6 +173,39 @@ TEST(CoupledRezone, RestsDoNotPileUpInThePointsThatTakeThem) {
   EXPECT_GT(most, 0.95 * kSolidContent) << "the cells around filled up to their solid content";
 }
 
+// The rezones' energy on the points, split by what they did (made, removed, corrected, rests),
+// sums to the ledger's rezone term: a moving block made from grains is all 'made'; turning its
+// middle cell discrete removes that cell's points and hands their material to the points around
+// as a rest, which gains what the removal lost but for the rigid correction's change.
+TEST(CoupledRezone, TheRezonesEnergyOnThePointsSplitsByWhatTheyDid) {
+  mpm::CoupledContinuum<2> continuum(square_box());
+  const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
+  continuum_block(continuum, 0.8 * kSolidContent, [](int j) { return Eigen::Vector2d(0.1 * j, -0.05); });
+  const auto& e = continuum.rezone_energy();
+  const double made = e.made.total();
+  ASSERT_GT(e.made.kinetic, 0);
+  EXPECT_EQ(e.made.potential, 0);  // (no gravity in this box)
+  EXPECT_NEAR(made, continuum.rezone_ledger(), 1e-12 * std::abs(made));
+  EXPECT_EQ(e.removed.total(), 0);
+  EXPECT_EQ(e.corrected.total(), 0);
+  EXPECT_EQ(e.rests.total(), 0);
+
+  std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
+  for (int i = 3; i <= 8; ++i)
+    for (int j = 3; j <= 8; ++j)
+      zones[coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(i + 0.5, j + 0.5)))] =
+          coupler::kContinuum;
+  zones[coupler::cell_index<2>(grid, coupler::cell_of<2>(grid, kCell * Eigen::Vector2d(5.5, 5.5)))] =
+      coupler::kDiscrete;
+  const coupler::StepAck out = rezone(continuum, zones, Rezone{});
+  ASSERT_EQ(out.rests_moved, 1);
+  EXPECT_LT(e.removed.kinetic, 0);
+  EXPECT_GT(e.rests.kinetic, 0);
+  EXPECT_EQ(e.made.total(), made);
+  const double scale = std::abs(made) + std::abs(e.removed.total()) + std::abs(e.rests.total());
+  EXPECT_NEAR(e.total(), continuum.rezone_ledger(), 1e-12 * scale);
+}
+
 // A discrete cell whose points find no other points within reach to take them keeps them,
 // waiting for room for grains; every rezone plans it again (points where the zone wants none).
 // Its points must wait where they are: corrected in place, not removed and remade at the

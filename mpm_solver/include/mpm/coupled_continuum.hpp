@@ -77,6 +77,27 @@ class CoupledContinuum {
   const Solver<D>& solver() const { return solver_; }
   double time() const { return time_; }
 
+  /// What the rezones did to the points' energy so far (J; J/m in 2D), by what they did to them:
+  /// points made (homogenisation), removed (for grains, or renewed), corrected onto their cell's
+  /// part, and the rests handed to points nearby, each as kinetic (with APIC's affine part),
+  /// potential and elastic energy. The four sum to the ledger's rezone term (rezone_ledger).
+  struct RezoneEnergy {
+    struct Parts {
+      double kinetic = 0, potential = 0, elastic = 0;
+      double total() const { return kinetic + potential + elastic; }
+      Parts& operator+=(const Parts& o) {
+        kinetic += o.kinetic, potential += o.potential, elastic += o.elastic;
+        return *this;
+      }
+      Parts operator-(const Parts& o) const { return {kinetic - o.kinetic, potential - o.potential, elastic - o.elastic}; }
+    };
+    Parts made, removed, corrected, rests;
+    double total() const { return made.total() + removed.total() + corrected.total() + rests.total(); }
+  };
+  const RezoneEnergy& rezone_energy() const { return rezone_energy_; }
+  /// The continuum's rezone term of the energy ledger: the points' energy the rezones changed.
+  double rezone_ledger() const { return ledger_.rezone; }
+
  private:
   /// Sets the points' loads until the next exchange from the last agreement's nodes: the
   /// reaction to the support force (body_accel) and the fill pressure (fill_pressure).
@@ -135,6 +156,9 @@ class CoupledContinuum {
   };
   EnergyLedger ledger_;
   double rezone_start_energy_ = 0;    ///< the points' energy when the rezone began
+  RezoneEnergy rezone_energy_;
+  /// The energy of the points `members`, in RezoneEnergy's parts (point_energy's terms).
+  typename RezoneEnergy::Parts energy_parts(const std::vector<std::size_t>& members) const;
   /// Kinetic plus potential energy of the grid (velocities after the grid update) and of the
   /// points. Quadratic B-splines reproduce positions, so both give the same potential energy.
   /// Both add the elastic energy the points' stress stores.
