@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <numeric>
 #include <sstream>
 
 #include "coupler/fill_pressure.hpp"
@@ -890,7 +891,9 @@ typename CoupledContinuum<D>::RezoneEnergy::Parts CoupledContinuum<D>::energy_pa
     const std::vector<std::size_t>& members) const {
   const auto& pts = solver_.points();
   const auto& models = solver_.materials();
-  const double dx = solver_.grid().dx, inertia = 0.25 * dx * dx;  // APIC's (point_energy)
+  // APIC: a point's affine field C carries kinetic energy 1/2 m (dx^2/4) |C|^2 (the quadratic
+  // B-spline's inertia D = dx^2/4 I), which its P2G hands to the grid
+  const double dx = solver_.grid().dx, inertia = 0.25 * dx * dx;
   typename RezoneEnergy::Parts parts;
   for (std::size_t p : members) {
     parts.kinetic += 0.5 * pts.mass[p] * (pts.v[p].squaredNorm() + inertia * pts.C[p].squaredNorm());
@@ -902,15 +905,9 @@ typename CoupledContinuum<D>::RezoneEnergy::Parts CoupledContinuum<D>::energy_pa
 
 template <int D>
 double CoupledContinuum<D>::point_energy() const {
-  const auto& pts = solver_.points();
-  // APIC: a point's affine field C carries kinetic energy 1/2 m (dx^2/4) |C|^2 (the quadratic
-  // B-spline's inertia D = dx^2/4 I), which its P2G hands to the grid
-  const double dx = solver_.grid().dx, inertia = 0.25 * dx * dx;
-  double energy = 0;
-  for (std::size_t p = 0; p < pts.size(); ++p)
-    energy += 0.5 * pts.mass[p] * (pts.v[p].squaredNorm() + inertia * pts.C[p].squaredNorm()) +
-              potential(pts.mass[p], pts.x[p]);
-  return energy + elastic_energy();
+  std::vector<std::size_t> all(solver_.points().size());
+  std::iota(all.begin(), all.end(), std::size_t{0});
+  return energy_parts(all).total();
 }
 
 template <int D>
