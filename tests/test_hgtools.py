@@ -265,3 +265,31 @@ def test_mpm_ledger_reads_the_last_wall_time_line():
                                      "G2P": 5.91, "other": 0.0148}
     with pytest.raises(RuntimeError, match="no 'mpm_solver: wall time' line"):
         logs.mpm_ledger("mpm_solver: coupled run finished at LAMMPS step 10\n")
+
+
+def test_a_hybrids_deposit_runs_through_its_continuum_to_the_grains_at_its_front():
+    """A deposit of grains at the back wall, continuum (points on a grid of 6 d cells, two per cell
+    and axis) from 10 d to 40 d, grains again to 50 d: the grains alone end the deposit at 10 d
+    and count the front's grains detached; with the points its front is the far grains'."""
+    from hgtools.collapse import measure
+    d, cell = 0.002, 0.012
+
+    def row(x0, x1):    # a floor row of touching grains of diameter d
+        return np.arange(x0 + d / 2, x1, d)
+
+    gx = np.concatenate([row(0, 10 * d), row(40 * d, 50 * d)])
+    grains = dict(type=np.ones(len(gx), dtype=int), x=gx, y=np.full(len(gx), d / 2), radius=np.full(len(gx), d / 2),
+                  vx=np.zeros(len(gx)), vy=np.zeros(len(gx)))
+    px = np.arange(10 * d + cell / 4, 40 * d, cell / 2)
+    points = dict(position=np.column_stack([px, np.full(len(px), cell / 4)]), volume=np.full(len(px), (cell / 2) ** 2))
+    alone = measure(grains, grains, 5 * d, d)
+    assert alone["front"] == pytest.approx(10 * d)
+    assert alone["detached"] == 10
+    hybrid = measure(grains, grains, 5 * d, d, points=points, cell=cell)
+    assert hybrid["front"] == pytest.approx(50 * d)
+    assert hybrid["runout"] == pytest.approx(9.0)
+    assert hybrid["detached"] == 0
+    # points that the continuum left behind, farther than half a cell from the rest, stay out of it
+    stray = dict(position=np.vstack([points["position"], [[80 * d, cell / 4]]]),
+                 volume=np.append(points["volume"], (cell / 2) ** 2))
+    assert measure(grains, grains, 5 * d, d, points=stray, cell=cell)["front"] == pytest.approx(50 * d)

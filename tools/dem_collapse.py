@@ -33,6 +33,7 @@ from hgtools.cache import Settled
 from hgtools.collapse import Deposit, measure
 from hgtools.grains import read_dump
 from hgtools.runner import Forms, workdir
+from mpm_results import load_run
 
 FORMS = Forms("column_collapse", lammps="dem_2d.lmp", liggghts=None, hybrid=None)   # the hybrid twin is in the deck
 DECK = FORMS.deck("lammps")
@@ -126,7 +127,11 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
     log = done.check("in the collapse", out / "final.dump")   # hybrid_vars may say hybrid 2
     if variables["prep"] and use_cache:
         cache.store(target)
-    res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d)
+    points, cell = None, None    # a hybrid's continuum at the end: its points are part of the deposit
+    if hybrid_vars is not None and (out / "frames").is_dir():
+        frames = load_run(out / "frames")
+        points, cell = frames.frame(-1, ["position", "volume"]), frames.grid["dx"]
+    res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d, points=points, cell=cell)
     m = re.search(END_RE, log, re.M)
     if not m:
         raise RuntimeError(f"no 'DEM collapse end' line in {out / 'log.lammps'}")

@@ -1,7 +1,8 @@
 """What the column collapse drivers (2D and 3D) measure alike on the final deposit, with the front
 definition of tools/dem_collapse.py: the deposit is the cluster of flowing grains (type 1)
 connected through contacts (gap < CONTACT_GAP d) to the grain nearest the back wall, Lf = max(x + r)
-over it, and the surface profile is max(y + r) per x bin of 2 d over it."""
+over it, and the surface profile is max(y + r) per x bin of 2 d over it. A hybrid's deposit also holds
+its continuum's points (measure(points=...))."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -11,15 +12,27 @@ import numpy as np
 from hgtools.grains import connected_deposit, dump_positions, max_overlap, surface_profile
 
 
-def measure(final: dict, initial: dict, width: float, d: float, period_z: float | None = None) -> dict:
+def measure(final: dict, initial: dict, width: float, d: float, period_z: float | None = None,
+            points: dict | None = None, cell: float | None = None) -> dict:
     """The deposit's figures from the final and the initial dump (2D or 3D; period_z: the period
-    of a periodic z, or None)."""
+    of a periodic z, or None). points: a hybrid's continuum at the end ("position", "volume": its
+    last HDF5 frame) on a grid of `cell`: the points join the deposit (each reaching half a cell,
+    so that neighbouring points and the grains beside them connect) and its front (each as far as
+    a body of its own volume). Without them a continuum reaching the front would end the deposit
+    at its first point. The other figures are the grains' in the deposit."""
     g = final["type"] == 1
     pos = dump_positions(final)[g]
     r = final["radius"][g]
-    mask = connected_deposit(pos, r, d, period_z)
+    bodies, reach, extent = pos, r, r
+    if points is not None and len(points["position"]):
+        volume = np.asarray(points["volume"], dtype=float)
+        bodies = np.vstack([pos, np.asarray(points["position"], dtype=float)[:, :pos.shape[1]]])
+        reach = np.concatenate([r, np.full(len(volume), 0.5 * cell)])
+        extent = np.concatenate([r, np.sqrt(volume / np.pi) if pos.shape[1] == 2 else np.cbrt(0.75 * volume / np.pi)])
+    connected = connected_deposit(bodies, reach, d, period_z)
+    mask = connected[:len(pos)]
     edge = pos[:, 0] + r
-    front = float(edge[mask].max())
+    front = float((bodies[:, 0] + extent)[connected].max())
     gi = initial["type"] == 1
     if pos.shape[1] == 2:
         speed = np.hypot(final["vx"][g], final["vy"][g])
@@ -35,7 +48,7 @@ def measure(final: dict, initial: dict, width: float, d: float, period_z: float 
         # 0 when no grain is at the wall (a hybrid whose continuum fills the corner)
         final_height=float(np.max((pos[:, 1] + r)[pos[:, 0] < 2 * d], initial=0.0)),
         max_speed=float(speed.max()),
-        max_speed_deposit=float(speed[mask].max()),
+        max_speed_deposit=float(speed[mask].max(initial=0.0)),
         max_overlap_initial=max_overlap(initial, d, period_z),
         max_overlap_final=max_overlap(final, d, period_z),
         detached=int((~mask).sum()),
