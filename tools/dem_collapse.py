@@ -130,7 +130,8 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
     points, cell = None, None    # a hybrid's continuum at the end: its points are part of the deposit
     if hybrid_vars is not None and (out / "frames").is_dir():
         frames = load_run(out / "frames")
-        points, cell = frames.frame(-1, ["position", "volume"]), frames.grid["dx"]
+        if len(frames) and frames.grid is not None:
+            points, cell = frames.frame(-1, ["position", "volume"]), frames.grid["dx"]
     res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d, points=points, cell=cell)
     m = re.search(END_RE, log, re.M)
     if not m:
