@@ -205,6 +205,17 @@ VARIANTS = {"depth_d": ("hdepth", "depth", "depth", True),
             "every": ("hevery", "every", "exchange every", False)}
 
 
+# the packing of rows without a seed (before 2026-12-07 every row was the --seed default's)
+DEFAULT_SEED = 12345
+
+
+def row_key(r: dict) -> tuple:
+    """What a row measures: a rerun replaces the saved row with the same key (another packing, its
+    `seed`, is another row)."""
+    return (r["scene"], r["width_d"], r.get("height_d"), r["cores"], r.get("pinned", False),
+            r.get("seed", DEFAULT_SEED), *(r.get(k) for k in VARIANTS))
+
+
 def is_variant(r: dict) -> bool:
     """A row of the hybrid at other zones than the fix's, or another exchange interval (the JSON's
     `depth_front`)."""
@@ -417,6 +428,8 @@ def table(rows: list[dict]) -> list[str]:
         runout = "" if r["runout_error"] is None else f"{r['runout_error']:+.1%}"
         cpu = f"{r['cpu_speedup']:.2f}x" if "cpu_speedup" in r else ""
         depth = f", {variant_label(r, unit='')}" if is_variant(r) else ""
+        if r.get("seed", DEFAULT_SEED) != DEFAULT_SEED:
+            depth += f", packing {r['seed']}"
         stops = " with stops" if r.get("interleaved") and "ledger_running_fraction" not in r else ""
         out.append(f"| {r['scene']} | {r['width_d']}, {r['height_d']}{depth} | {r['grains']} | {r['lammps_ranks']}, {r['mpm_threads']}{' (pinned)' if r.get('pinned') else ''} | {r['continuum_share']:.0%} | "
                    f"{r['points_max']} | {r['dem_wall_s']:.0f} | {r['hybrid_wall_s']:.0f} | {r['speedup']:.2f}x | "
@@ -586,7 +599,8 @@ def main() -> int:
                     help="the silo's discharge time after the opening, s (0.4 s, the default until 2026-11-27, hid a "
                          "hybrid band that drained after 0.5 s, and one run's rate has a standard error of about "
                          "2 %% over it)")
-    ap.add_argument("--seed", type=int, default=12345)
+    ap.add_argument("--seed", type=int, default=DEFAULT_SEED,
+                    help="the packing (random seed of the pour); each packing's rows are rows of their own")
     ap.add_argument("--hcell", default="0", help="the hybrid's cell, m, or 0 (the fix's, from the grains)")
     ap.add_argument("--depths", default="",
                     help="silo: also run the hybrid with these zone depths, grain diameters (e.g. '12,24'), "
@@ -689,18 +703,16 @@ def main() -> int:
                f"{' --touch-floor' if a.touch_floor else ''}{' --collapse-touch' if a.collapse_touch else ''}{' --collapse-touch-only' if a.collapse_touch_only else ''}{' --collapse-depths-only' if a.collapse_depths_only else ''}{f' --collapse-depths {a.collapse_depths}' if a.collapse_depths else ''}{f' --collapse-every {a.collapse_every}' if a.collapse_every else ''}{' --pin' if a.pin else ''}{' --keep' if a.keep else ''}")
     saved_rows = load(path)[1] if a.keep and path.exists() else []
     saved_date = json.loads(path.read_text())["date"] if saved_rows else stamp
-    key = lambda r: (r["scene"], r["width_d"], r.get("height_d"), r["cores"], r.get("pinned", False),  # noqa: E731
-                     *(r.get(k) for k in VARIANTS))
     rows: list[dict] = []
 
     def finish(new: list[dict]) -> None:
         """Adds a size's rows and writes the JSON and the report so far (a long invocation that
         stops keeps what it measured)."""
         for r in new:
-            r["date"], r["pinned"] = stamp, a.pin
+            r["date"], r["pinned"], r["seed"] = stamp, a.pin, a.seed
         rows.extend(new)
-        done = {key(r) for r in rows}
-        old = [dict(r, date=r.get("date", saved_date)) for r in saved_rows if key(r) not in done]
+        done = {row_key(r) for r in rows}
+        old = [dict(r, date=r.get("date", saved_date)) for r in saved_rows if row_key(r) not in done]
         save(path, old + rows, date=stamp, np=a.np_, command=command)
         write(old + rows, command, stamp, a.out)
 

@@ -146,3 +146,12 @@ def test_the_front_joins_only_the_rows_of_one_dem_run(tmp_path):
     assert "depth 9 d, exchange every 20" in [t.get_text() for t in ax.texts]
     plt.close(fig)
     assert "exchange every 20" in next(line for line in scale_speed.table(today) if "every" in line)
+
+
+def test_another_packing_is_a_row_of_its_own():
+    """Rows of two packings of one scene are two rows (a rerun with --seed 2 once replaced the
+    default packing's row); a saved row without a seed is the default packing's."""
+    row = dict(scene="collapse_2d", width_d=100, height_d=200, cores=2, pinned=False, depth_d=9, touch=1)
+    assert scale_speed.row_key(dict(row, seed=2)) != scale_speed.row_key(dict(row, seed=scale_speed.DEFAULT_SEED))
+    assert scale_speed.row_key(row) == scale_speed.row_key(dict(row, seed=scale_speed.DEFAULT_SEED))
+    assert scale_speed.row_key(dict(row, depth_d=12)) != scale_speed.row_key(row)
