@@ -375,6 +375,13 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   moved_cells_ = static_cast<std::int64_t>(moving_.size());
   points_made_ = points_removed_ = 0;
   std::vector<std::vector<std::size_t>> own(moving_.size());  // the points each cell keeps or made
+  // a rigid correction of points, its change of their energy tallied under `tally` (rezone_energy_)
+  auto correct_tallied = [&](const std::vector<std::size_t>& members, const coupler::RigidCorrection<D>& fix,
+                             typename RezoneEnergy::Parts& tally) {
+    const auto before = energy_parts(members);
+    correct_points(members, fix);
+    tally += energy_parts(members) - before;
+  };
   auto make_points = [&](std::size_t k, double part, float label) {
     const MovingCell& m = moving_[k];
     const std::size_t first = own[k].size();
@@ -412,9 +419,8 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     }
     if (!(s.points > 0)) continue;
     if (P.moments.mass > 0 && !thin) {
-      const auto before = energy_parts(m.members);
-      correct_points(m.members, coupler::rigid_correction<D>(P, total[k].scaled(s.points), centre));
-      rezone_energy_.corrected += energy_parts(m.members) - before;
+      correct_tallied(m.members, coupler::rigid_correction<D>(P, total[k].scaled(s.points), centre),
+                      rezone_energy_.corrected);
       for (std::size_t p : m.members) pts.weight[p] = label_of(m);
       own[k] = m.members;
     } else if (total[k].mass > 0) {
@@ -471,9 +477,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
       return coupler::rigid_correction<D>(now, target, centre);
     };
     auto give = [&](const std::vector<std::size_t>& members, const coupler::CellMoments<D>& part) {
-      const auto before = energy_parts(members);
-      correct_points(members, correction(members, part));
-      rezone_energy_.rests += energy_parts(members) - before;
+      correct_tallied(members, correction(members, part), rezone_energy_.rests);
     };
     // Of the reaches whose carriers hold enough mass, the one whose correction creates the least
     // kinetic energy: moving a rest keeps its angular momentum exactly by spinning the carriers
@@ -519,9 +523,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
           // there and lost their deformation, and the run made and removed them again and again.
           for (std::size_t p : m.members) remove[p] = 0, pts.weight[p] = 1.0f;
           points_removed_ -= static_cast<std::int64_t>(m.members.size());
-          const auto before = energy_parts(m.members);
-          correct_points(m.members, coupler::rigid_correction<D>(m.points, left, centre));
-          rezone_energy_.rests += energy_parts(m.members) - before;
+          correct_tallied(m.members, coupler::rigid_correction<D>(m.points, left, centre), rezone_energy_.rests);
           own[k] = m.members;
         } else {
           make_points(k, remainder, 1.0f);
@@ -558,7 +560,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     std::vector<std::size_t> removed;
     for (std::size_t p = 0; p < remove.size(); ++p)
       if (remove[p]) removed.push_back(p);
-    rezone_energy_.removed += typename RezoneEnergy::Parts{} - energy_parts(removed);
+    rezone_energy_.removed -= energy_parts(removed);
     remove_points(pts, remove);
     solver_.sort_points_by_cell();
   }
@@ -877,12 +879,15 @@ double CoupledContinuum<D>::grid_energy() const {
 }
 
 template <int D>
-double CoupledContinuum<D>::elastic_energy() const {
+double CoupledContinuum<D>::elastic_energy(std::size_t p) const {
   const auto& pts = solver_.points();
-  const auto& models = solver_.materials();
+  return pts.volume(p) * solver_.materials()[pts.material[p]].template elastic_energy_density<D>(pts.stress[p]);
+}
+
+template <int D>
+double CoupledContinuum<D>::elastic_energy() const {
   double energy = 0;
-  for (std::size_t p = 0; p < pts.size(); ++p)
-    energy += pts.volume(p) * models[pts.material[p]].template elastic_energy_density<D>(pts.stress[p]);
+  for (std::size_t p = 0; p < solver_.points().size(); ++p) energy += elastic_energy(p);
   return energy;
 }
 
@@ -890,7 +895,6 @@ template <int D>
 typename CoupledContinuum<D>::RezoneEnergy::Parts CoupledContinuum<D>::energy_parts(
     const std::vector<std::size_t>& members) const {
   const auto& pts = solver_.points();
-  const auto& models = solver_.materials();
   // APIC: a point's affine field C carries kinetic energy 1/2 m (dx^2/4) |C|^2 (the quadratic
   // B-spline's inertia D = dx^2/4 I), which its P2G hands to the grid
   const double dx = solver_.grid().dx, inertia = 0.25 * dx * dx;
@@ -898,7 +902,7 @@ typename CoupledContinuum<D>::RezoneEnergy::Parts CoupledContinuum<D>::energy_pa
   for (std::size_t p : members) {
     parts.kinetic += 0.5 * pts.mass[p] * (pts.v[p].squaredNorm() + inertia * pts.C[p].squaredNorm());
     parts.potential += potential(pts.mass[p], pts.x[p]);
-    parts.elastic += pts.volume(p) * models[pts.material[p]].template elastic_energy_density<D>(pts.stress[p]);
+    parts.elastic += elastic_energy(p);
   }
   return parts;
 }

@@ -388,7 +388,7 @@ void drop_hybrid_without_continuum(const GridGeometry<D>& grid, const std::vecto
 /// grains and points together) below rest_speed^2.
 inline std::vector<std::uint8_t> material_still(const std::vector<double>& kinetic, const std::vector<double>& mass,
                                                 double rest_speed) {
-  if (kinetic.size() != mass.size()) throw std::invalid_argument("material_at_rest: input of the wrong size");
+  if (kinetic.size() != mass.size()) throw std::invalid_argument("material_still: input of the wrong size");
   const double limit = 0.5 * rest_speed * rest_speed;  // kinetic energy per unit mass
   std::vector<std::uint8_t> still(mass.size());
   for (std::size_t c = 0; c < mass.size(); ++c) still[c] = mass[c] <= 0 || kinetic[c] < limit * mass[c];

@@ -89,7 +89,11 @@ class CoupledContinuum {
         kinetic += o.kinetic, potential += o.potential, elastic += o.elastic;
         return *this;
       }
-      Parts operator-(const Parts& o) const { return {kinetic - o.kinetic, potential - o.potential, elastic - o.elastic}; }
+      Parts& operator-=(const Parts& o) {
+        kinetic -= o.kinetic, potential -= o.potential, elastic -= o.elastic;
+        return *this;
+      }
+      Parts operator-(const Parts& o) const { return Parts(*this) -= o; }
     };
     Parts made, removed, corrected, rests;
     double total() const { return made.total() + removed.total() + corrected.total() + rests.total(); }
@@ -165,6 +169,7 @@ class CoupledContinuum {
   double grid_energy() const;
   double point_energy() const;
   double elastic_energy() const;
+  double elastic_energy(std::size_t p) const;  ///< point p's
   double potential(double mass, const Vec<D>& x) const;
   coupler::StepAck ack(std::int64_t step, double mass, const Vec<D>& momentum, const coupler::Spin<D>& angular,
                        double kinetic_energy) const;
