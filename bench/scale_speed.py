@@ -94,14 +94,13 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "tools"))
 from column_collapse import combine_surfaces, points_surface, surface_error  # noqa: E402
-from dem_collapse import prepare as prepare_column, run as collapse  # noqa: E402
+from dem_collapse import final_continuum, prepare as prepare_column, run as collapse  # noqa: E402
 import dem3d_silo  # noqa: E402
 from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
 from hgtools.discharge import rate_ratio_se, recorded_time  # noqa: E402
 from hgtools.interleave import Job, interleave, no_progress  # noqa: E402
 from hgtools.logs import thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
-from mpm_results import load_run  # noqa: E402
 
 RESULTS = REPO / "bench" / "results"
 D = 0.002                     # grain diameter, m
@@ -384,7 +383,7 @@ def run_collapse(n: int, np_: int, seed: int, hcell: str, threads: int, work: Pa
     h0 = ASPECT * n * D
     rows = []
     for (name, _, touched, depth, every), (hyb, hyb_cpu, running) in zip(hybrids, timed):
-        points = load_run(work / name / "frames").frame(-1)["position"]
+        points = final_continuum(work / name)[0]["position"]
         surface = combine_surfaces(np.array(hyb.profile).T, points_surface(points, n * D / 20, 2 * D))
         row = dict(scene="collapse_2d", grains=dem.grains, width_d=n, height_d=int(ASPECT * n), orifice_d=None,
                    **{key: None for key in VARIANTS}, error=surface_error(surface, np.array(dem.profile).T, h0),

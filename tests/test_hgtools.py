@@ -293,3 +293,5 @@ def test_a_hybrids_deposit_runs_through_its_continuum_to_the_grains_at_its_front
     stray = dict(position=np.vstack([points["position"], [[80 * d, cell / 4]]]),
                  volume=np.append(points["volume"], (cell / 2) ** 2))
     assert measure(grains, grains, 5 * d, d, points=stray, cell=cell)["front"] == pytest.approx(50 * d)
+    with pytest.raises(ValueError, match="needs the grid's cell"):    # a point's reach is half a cell
+        measure(grains, grains, 5 * d, d, points=points)

@@ -45,7 +45,7 @@ from tqdm import tqdm
 from column_collapse import (ColumnCollapse, combine_surfaces, normalised_runout, points_surface,
                              published_runout_range, surface_error)
 from calibrate import describe_material
-from dem_collapse import run as run_dem, run_from_settled
+from dem_collapse import final_continuum, run as run_dem, run_from_settled
 from hgtools import runner
 from hgtools.logs import thermo_rows
 from mpm_results import load_run
@@ -152,7 +152,7 @@ def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: 
         hvars = {"hybrid_fixed": {"hy": min(0.7, 0.6 * aspect)}, "hybrid_adaptive": {"hybrid": 2},
                  "hybrid_adaptive_d2": {"hybrid": 2, "hdepth": 0.2 * width}}[name]
         res = run_dem(**common, out=out / name, hybrid_vars=hvars)
-        return dem_outcome(name, res, out / name, load_run(out / name / "frames").frame(-1)["position"])
+        return dem_outcome(name, res, out / name, final_continuum(out / name)[0]["position"])
     if name.startswith("mpm_"):
         return run_mpm(name[4:], aspect, width, cell, out, np_)
     raise ValueError(f"unknown run '{name}' (known: {', '.join(ALL_RUNS)})")

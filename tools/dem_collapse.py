@@ -100,6 +100,18 @@ def prepare(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int 
 END_RE = r"^DEM collapse end: t = (\S+) s, grains \d+, KE/grain = (\S+) J \(rest threshold (\S+) J\)"
 
 
+def final_continuum(out: Path) -> tuple[dict | None, float | None]:
+    """A hybrid's continuum at the end of its run in `out`: its last frame's points ("position",
+    "volume") and the grid's cell; (None, None) without frames or grid (a run of grains only).
+    Its points are part of the deposit."""
+    if not (out / "frames").is_dir():
+        return None, None
+    frames = load_run(out / "frames")
+    if not len(frames) or frames.grid is None:
+        return None, None
+    return frames.frame(-1, ["position", "volume"]), frames.grid["dx"]
+
+
 def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
         out: str | Path | None = None, seed: int = 12345, use_cache: bool = True,
         lmp: str = "lmp", timeout: float = 3600, extra_vars: dict | None = None,
@@ -127,11 +139,7 @@ def run(aspect: float = 2.0, width: float = 0.1, d: float = 0.002, np_: int = 1,
     log = done.check("in the collapse", out / "final.dump")   # hybrid_vars may say hybrid 2
     if variables["prep"] and use_cache:
         cache.store(target)
-    points, cell = None, None    # a hybrid's continuum at the end: its points are part of the deposit
-    if hybrid_vars is not None and (out / "frames").is_dir():
-        frames = load_run(out / "frames")
-        if len(frames) and frames.grid is not None:
-            points, cell = frames.frame(-1, ["position", "volume"]), frames.grid["dx"]
+    points, cell = final_continuum(out) if hybrid_vars is not None else (None, None)
     res = measure(read_dump(out / "final.dump"), read_dump(out / "initial.dump"), width, d, points=points, cell=cell)
     m = re.search(END_RE, log, re.M)
     if not m:

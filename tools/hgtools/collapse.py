@@ -20,6 +20,8 @@ def measure(final: dict, initial: dict, width: float, d: float, period_z: float 
     so that neighbouring points and the grains beside them connect) and its front (each as far as
     a body of its own volume). Without them a continuum reaching the front would end the deposit
     at its first point. The other figures are the grains' in the deposit."""
+    if points is not None and cell is None:
+        raise ValueError("measure(points=...) needs the grid's cell (cell=): a point reaches half a cell")
     g = final["type"] == 1
     pos = dump_positions(final)[g]
     r = final["radius"][g]
