@@ -23,12 +23,13 @@ thermo rows), and the hybrid's time ledger (entries 30-32: coupling, MPM wait, r
 the time the hybrid ran (Outcome.running_share; docs/design.md 7.3).
 
 Cost model (docs/design.md section 7.3): a DEM step costs c_g per grain in LAMMPS (measured on
-this size's DEM run: its loop time over its grain-steps); the hybrid's step costs c_g per grain
-still in LAMMPS, plus the MPM process's c_p per point-substep (bench/results/mpm_throughput.json,
+this size's DEM run: its loop time over its grain-steps); the hybrid's step costs f c_g per grain
+still in LAMMPS, f = 1 - s + s n_h / n_d with s the DEM's Pair share of its loop and n the neighbours
+per grain of each run (LAMMPS's own counts: the hybrid's surface and deposit grains have fewer), plus the MPM process's c_p per point-substep (bench/results/mpm_throughput.json,
 2D, the threads it runs with) while LAMMPS waits, plus c_x per coupled grain and exchange
 (bench/results/coupling_overhead.json: the fix's cost per exchange, less its MPM substep, over its
 coupled grains).
-predicted speedup = T_DEM / (c_g * grain-steps + c_p * point-substeps + c_x * coupled grain-
+predicted speedup = T_DEM / (f c_g * grain-steps + c_p * point-substeps + c_x * coupled grain-
 exchanges), all counts from the hybrid's own thermo rows. Where the measured speedup falls more
 than 20 % short of it, the rest is overhead the model does not hold (rezones, oracle, waiting).
 
@@ -99,6 +100,7 @@ import dem3d_silo  # noqa: E402
 from dem_silo import prepare_silo, run_dem_silo  # noqa: E402
 from hgtools.discharge import rate_ratio_se, recorded_time  # noqa: E402
 from hgtools.interleave import Job, interleave, no_progress  # noqa: E402
+from hgtools import logs  # noqa: E402
 from hgtools.logs import thermo_rows  # noqa: E402
 from hgtools.report import write_report  # noqa: E402
 
@@ -133,6 +135,20 @@ def exchange_cost() -> float:
     case = json.loads((RESULTS / "coupling_overhead.json").read_text())["summary"]["np1_coupled_every10"]
     mpm = case["points"] * case["substeps_per_exchange"] * mpm_point_cost(1)
     return (1e-3 * case["fix_ms_per_exchange"] - mpm) / case["coupled_grains"]
+
+
+def neighbour_factor(dem_text: str, hyb_text: str) -> tuple[float, list[float]]:
+    """The hybrid's cost per grain-step over the DEM's, from their logs: LAMMPS's Pair work is per
+    neighbour (its share of the DEM's loop scales with the neighbours per grain), the rest per grain.
+    The hybrid's grains (a surface layer, the band, a thin deposit) have fewer neighbours each than a
+    dense bed's (the 200 d collapse: 2.0 against 2.6). Returns the factor and the [DEM, hybrid]
+    neighbours per grain; 1 where a log has no run's neighbour count."""
+    dem, hyb = logs.neighbours(dem_text), logs.neighbours(hyb_text)
+    if not (dem["atom_steps"] > 0 and hyb["atom_steps"] > 0 and dem["loop_s"] > 0 and dem["neighbour_steps"] > 0):
+        return 1.0, []
+    per_grain = [dem["neighbour_steps"] / dem["atom_steps"], hyb["neighbour_steps"] / hyb["atom_steps"]]
+    pair_share = min(1.0, dem["pair_s"] / dem["loop_s"])
+    return 1.0 - pair_share + pair_share * per_grain[1] / per_grain[0], per_grain
 
 
 def steps_weighted(rows: list[dict], key) -> float:
@@ -180,10 +196,12 @@ def cost_model(dem_loop: float, dem_log: Path, hyb_log: Path, threads: int, dim:
     c_g = dem_loop / steps_weighted(dem_rows, lambda r: r["v_ng"])
     led = hybrid_ledger(hyb_log, every=every)
     c_p, c_x = mpm_point_cost(threads, dim), exchange_cost()
-    model = dict(grains=c_g * led["grain_steps"], points=c_p * led["point_substeps"],
+    grain_factor, neighbours = neighbour_factor(Path(dem_log).read_text(), Path(hyb_log).read_text())
+    model = dict(grains=c_g * grain_factor * led["grain_steps"], points=c_p * led["point_substeps"],
                  exchange=c_x * led["coupled_exchanges"])
     return dict(predicted_speedup=dem_loop / sum(model.values()), continuum_share=led["share_mean"],
-                cost_per_grain_step_s=c_g, cost_per_point_substep_s=c_p, cost_per_coupled_grain_exchange_s=c_x,
+                cost_per_grain_step_s=c_g, grain_cost_factor=grain_factor, neighbours_per_grain=neighbours,
+                cost_per_point_substep_s=c_p, cost_per_coupled_grain_exchange_s=c_x,
                 model_s=model, coupling_s=running * led["coupling_s"], mpm_wait_s=running * led["mpm_wait_s"],
                 rezone_s=running * led["rezone_s"], ledger_running_fraction=running, points_max=led["points_max"],
                 share_t=led["share_t"], share=led["share"])

@@ -62,6 +62,26 @@ def loops(text: str, after: str | None = None) -> tuple[int, float]:
     return sum(int(n) for _, n in found), sum(float(t) for t, _ in found)
 
 
+RUN_NEIGHBOURS_RE = re.compile(r"^Loop time of (\S+) on \d+ procs for (\d+) steps with (\d+) atoms$(.*?)"
+                               r"^Ave neighs/atom = (\S+)$", re.M | re.S)
+PAIR_RE = re.compile(r"^Pair\s+\|\s+\S+\s+\|\s+(\S+)", re.M)
+
+
+def neighbours(text: str) -> dict[str, float]:
+    """What LAMMPS's runs in a log did per atom and per neighbour: their atom-steps and
+    neighbour-steps (each run's steps times its atoms, and times its neighbours per atom at its
+    end), their loop and Pair (mean over the ranks) seconds. A pair style's work is per neighbour,
+    so grains with fewer neighbours (a surface layer, a thin deposit) cost less each."""
+    out = dict(atom_steps=0.0, neighbour_steps=0.0, loop_s=0.0, pair_s=0.0)
+    for loop, steps, atoms, body, per_atom in RUN_NEIGHBOURS_RE.findall(text):
+        pair = PAIR_RE.search(body)
+        out["atom_steps"] += int(steps) * int(atoms)
+        out["neighbour_steps"] += int(steps) * int(atoms) * float(per_atom)
+        out["loop_s"] += float(loop)
+        out["pair_s"] += float(pair.group(1)) if pair else 0.0
+    return out
+
+
 def timing_sections(text: str, header: str) -> dict[str, float]:
     """The mean ("avg time") seconds of each section of every timing table under a line holding
     `header` (LAMMPS's "MPI task timing breakdown", the fix's "fix hybrid/mpm timing breakdown"),
