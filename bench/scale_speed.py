@@ -25,8 +25,9 @@ the time the hybrid ran (Outcome.running_share; docs/design.md 7.3).
 Cost model (docs/design.md section 7.3): a DEM step costs c_g per grain in LAMMPS (measured on
 this size's DEM run: its loop time over its grain-steps); the hybrid's step costs f c_g per grain
 still in LAMMPS, f = 1 - s + s n_h / n_d with s the DEM's Pair share of its loop and n the neighbours
-per grain of each run (LAMMPS's own counts: the hybrid's surface and deposit grains have fewer), plus the MPM process's c_p per point-substep (bench/results/mpm_throughput.json,
-2D, the threads it runs with) while LAMMPS waits, plus c_x per coupled grain and exchange
+per grain of each run (LAMMPS's own counts: the hybrid's surface and deposit grains have fewer),
+plus the MPM process's c_p per point-substep (bench/results/mpm_throughput.json, 2D, the threads
+it runs with) while LAMMPS waits, plus c_x per coupled grain and exchange
 (bench/results/coupling_overhead.json: the fix's cost per exchange, less its MPM substep, over its
 coupled grains).
 predicted speedup = T_DEM / (f c_g * grain-steps + c_p * point-substeps + c_x * coupled grain-

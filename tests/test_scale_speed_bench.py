@@ -160,13 +160,16 @@ def test_another_packing_is_a_row_of_its_own():
 def test_the_model_counts_a_grains_neighbours_in_lammpss_pair_share():
     """A hybrid whose grains have half the DEM's neighbours each costs, per grain-step, the DEM's
     non-Pair share plus half its Pair share; LAMMPS's per-run counts are read from both logs."""
-    def run(loop, steps, atoms, pair, per_atom):
+    def run(loop, steps, atoms, pair, per_atom=None):    # LAMMPS's end-of-run lines
         return (f"Loop time of {loop} on 2 procs for {steps} steps with {atoms} atoms\n\n"
+                "MPI task timing breakdown:\n"
                 "Section |  min time  |  avg time  |  max time  |%varavg| %total\n"
-                f"Pair    | 1.0        | {pair}     | 1.0        |   0.0 | 50.00\n"
-                f"Total # of neighbors = 1\nAve neighs/atom = {per_atom}\n")
+                "---------------------------------------------------------------\n"
+                f"Pair    | 1.0        | {pair}     | 1.0        |   0.0 | 50.00\n\n"
+                + ("" if per_atom is None else f"Total # of neighbors = 1\nAve neighs/atom = {per_atom}\n"))
     dem = run(10.0, 100, 1000, 6.0, 3.0) + run(10.0, 100, 1000, 6.0, 3.0)
-    hybrid = run(2.0, 200, 100, 0.4, 1.5)
+    # a run without a neighbour count (a run 0) counts its time, not the next run's neighbours
+    hybrid = run(0.0, 1, 500, 0.0) + run(2.0, 200, 100, 0.4, 1.5)
     factor, per_grain = scale_speed.neighbour_factor(dem, hybrid)
     assert per_grain == pytest.approx([3.0, 1.5])
     assert factor == pytest.approx(0.4 + 0.6 * 0.5)

@@ -62,23 +62,25 @@ def loops(text: str, after: str | None = None) -> tuple[int, float]:
     return sum(int(n) for _, n in found), sum(float(t) for t, _ in found)
 
 
-RUN_NEIGHBOURS_RE = re.compile(r"^Loop time of (\S+) on \d+ procs for (\d+) steps with (\d+) atoms$(.*?)"
-                               r"^Ave neighs/atom = (\S+)$", re.M | re.S)
-PAIR_RE = re.compile(r"^Pair\s+\|\s+\S+\s+\|\s+(\S+)", re.M)
+RUN_ATOMS_RE = re.compile(r"^Loop time of \S+ on \d+ procs for (\d+) steps with (\d+) atoms", re.M)
+NEIGHS_RE = re.compile(r"^Ave neighs/atom = (\S+)$", re.M)
 
 
 def neighbours(text: str) -> dict[str, float]:
     """What LAMMPS's runs in a log did per atom and per neighbour: their atom-steps and
     neighbour-steps (each run's steps times its atoms, and times its neighbours per atom at its
-    end), their loop and Pair (mean over the ranks) seconds. A pair style's work is per neighbour,
-    so grains with fewer neighbours (a surface layer, a thin deposit) cost less each."""
-    out = dict(atom_steps=0.0, neighbour_steps=0.0, loop_s=0.0, pair_s=0.0)
-    for loop, steps, atoms, body, per_atom in RUN_NEIGHBOURS_RE.findall(text):
-        pair = PAIR_RE.search(body)
-        out["atom_steps"] += int(steps) * int(atoms)
-        out["neighbour_steps"] += int(steps) * int(atoms) * float(per_atom)
-        out["loop_s"] += float(loop)
-        out["pair_s"] += float(pair.group(1)) if pair else 0.0
+    end; a run without a neighbour count adds to neither), their loop and Pair (mean over the ranks)
+    seconds (loops, timing_sections). A pair style's work is per neighbour, so grains with fewer
+    neighbours (a surface layer, a thin deposit) cost less each."""
+    out = dict(atom_steps=0.0, neighbour_steps=0.0, loop_s=loops(text)[1],
+               pair_s=timing_sections(text, "MPI task timing breakdown").get("Pair", 0.0))
+    runs = list(RUN_ATOMS_RE.finditer(text))
+    for run, following in zip(runs, runs[1:] + [None]):
+        count = NEIGHS_RE.search(text, run.end(), following.start() if following else len(text))
+        if count:
+            atom_steps = int(run.group(1)) * int(run.group(2))
+            out["atom_steps"] += atom_steps
+            out["neighbour_steps"] += atom_steps * float(count.group(1))
     return out
 
 
