@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import REPO
-from hgtools.logs import ledger, ledger_closure, thermo_rows, thermo_tables
+from hgtools.logs import ledger, ledger_closure, rezone_energy, thermo_rows, thermo_tables
 from test_coupled_physics import LAUNCH, env, liggghts_headers, run_deck
 
 DECKS = {"2d": REPO / "input_decks" / "hybrid" / "adaptive_2d.lmp",
@@ -105,6 +105,11 @@ def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid
     assert end["DEM steps"] < 0, end
     assert end["agreement (grains)"] + end["agreement (continuum)"] < 0, end
     assert end["rezones (grains)"] != 0 and end["rezones (continuum)"] != 0, end
+    # the grains' side of the rezones, split: grains made from points bring their kinetic energy,
+    # removed ones take theirs, no potential energy without gravity
+    split = assert_grain_rezone_split(log, end)
+    assert split["made"]["kinetic"] > 0 and split["removed"]["kinetic"] < 0, split
+    assert all(split[term]["potential"] == 0 for term in ("made", "removed", "corrected")), split
 
 
 def test_grid_chosen_from_the_grains_makes_coarse_points(tmp_path, hybrid_programs):
@@ -175,6 +180,28 @@ def test_rezone_log_sums_the_rezones_at_thermo_output(tmp_path, hybrid_programs)
     # quiet: the run's summary only
     assert rezone_lines(logs["quiet"]) == [] and TOTALS.findall(logs["quiet"]) == []
     assert [(s["kind"], s["rezones"]) for s in rezone_summaries(logs["quiet"])] == [("run of steps", len(oracle_steps))]
+
+
+def assert_grain_rezone_split(log: str, end: dict) -> dict:
+    """The fix's end-of-run lines split the grains' side of the rezones into grains made, removed
+    and corrected (kinetic and potential); over the runs of the log they sum to the ledger's
+    entry 27 at its end (`end`, the last thermo row's ledger), to round-off of the energy scale.
+    Returns the split summed over the runs."""
+    runs = rezone_energy(log, "grains")
+    assert runs, "no line of the rezones' energy on the grains in the log"
+    total = {term: {part: sum(r[term][part] for r in runs) for part in ("total", "kinetic", "potential")}
+             for term in ("made", "removed", "corrected")}
+    for r in runs:    # each line's terms add up to its sum (6 digits printed) and to their parts
+        terms = [r[t] for t in ("made", "removed", "corrected")]
+        scale = max(abs(t["total"]) for t in terms) + 1e-300
+        assert abs(sum(t["total"] for t in terms) - r["all"]) <= 2e-5 * scale, r
+        for t in terms:
+            assert t["total"] == pytest.approx(t["kinetic"] + t["potential"], abs=2e-5 * scale), r
+    # 6 significant digits a term: the sum matches the ledger to their precision
+    scale = max(abs(total[t]["total"]) for t in total)
+    assert sum(r["all"] for r in runs) == pytest.approx(end["rezones (grains)"], abs=2e-5 * scale), (runs, end)
+    assert scale > 0
+    return total
 
 
 def assert_ledger_closes(rows: list[dict]) -> dict:
@@ -312,6 +339,10 @@ def test_discrete_zone_follows_the_free_surface_of_a_collapsing_column(tmp_path,
     end = assert_ledger_closes(table)
     released = ledger(table[0])["total"] - end["total"]
     assert released > 0
+    # the grains' side of its rezones, split: with gravity the made and removed grains carry
+    # potential energy too
+    split = assert_grain_rezone_split(log, end)
+    assert split["made"]["potential"] != 0 and split["removed"]["potential"] != 0, split
     assert -end["DEM steps"] > 0.3 * released, end
     assert end["agreement (grains)"] + end["agreement (continuum)"] < 0, end
 

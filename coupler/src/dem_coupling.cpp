@@ -108,6 +108,15 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
   std::map<std::size_t, GrainSums<D>> sums = moving_grain_sums<D>(grid, cells, slots, atoms.grains(), plan.rules);
 
   // 3. enrichment (collective): new grains, their sums with the old ones'
+  const double inertia = plan.rules.inertia;
+  auto energy_of = [&](const DemGrains &g) {    // this rank's grains of the group
+    GrainEnergy e;
+    for (int i = 0; i < g.n; i++)
+      if (g.coupled(i)) e += grain_energy_of(g, i, inertia, plan.gravity);
+    return e;
+  };
+  RezoneGrainEnergy energy;
+  energy.made -= energy_of(atoms.grains());
   const auto planned = plan_new_grains<D>(grid, cells, sums, atoms.grains(), *plan.packing, plan.rules,
                                           plan.grain_diameter, plan.lo, plan.hi, comm);
   std::int64_t made_local = 0;
@@ -126,9 +135,22 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
 
   // 5. apply them: delete, or scale and add the rigid velocity increment
   DemGrains now = atoms.grains();    // (new grains may have moved the arrays)
+  energy.made += energy_of(now);
+  std::vector<GrainEnergy> before(now.n);
+  for (int i = 0; i < now.n; i++)
+    if (now.coupled(i)) before[i] = grain_energy_of(now, i, inertia, plan.gravity);
   const std::vector<char> remove = apply_corrections<D>(grid, cells, slots, corrections, now, plan.rules);
   std::int64_t deleted_local = 0;
-  for (char r : remove) deleted_local += r ? 1 : 0;
+  for (int i = 0; i < now.n; i++) {
+    if (!now.coupled(i)) continue;
+    if (remove[i]) {
+      deleted_local++;
+      energy.removed -= before[i];
+    } else {
+      energy.corrected += grain_energy_of(now, i, inertia, plan.gravity);
+      energy.corrected -= before[i];
+    }
+  }
   atoms.remove(remove);
 
   // 6. the grains' support force now (deleted, made, rescaled grains changed it): the MPM
@@ -144,6 +166,10 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
   std::int64_t all[2];
   MPI_Allreduce(local, all, 2, MPI_INT64_T, MPI_SUM, comm);
   counts.deleted = all[0], counts.made = all[1];
+  double energy_local[RezoneGrainEnergy::kSums], energy_all[RezoneGrainEnergy::kSums];
+  energy.to_array(energy_local);
+  MPI_Allreduce(energy_local, energy_all, RezoneGrainEnergy::kSums, MPI_DOUBLE, MPI_SUM, comm);
+  counts.energy = RezoneGrainEnergy::from_array(energy_all);
   return out;
 }
 
@@ -157,6 +183,7 @@ RezoneReport rezone_report(std::int64_t step, const RezoneCounts &counts, const 
   r.continuum_cells = ack.zone_cells[kContinuum], r.hybrid_cells = ack.zone_cells[kHybrid];
   r.discrete_cells = ack.zone_cells[kDiscrete];
   r.rests_moved = ack.rests_moved, r.rests_kept = ack.rests_kept;
+  r.grain_energy = counts.energy;
   return r;
 }
 

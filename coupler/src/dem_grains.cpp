@@ -28,19 +28,21 @@ void grain_totals(const DemGrains &g, double inertia, double out[7]) {
   }
 }
 
+GrainEnergy grain_energy_of(const DemGrains &g, int i, double inertia, const double gravity[3]) {
+  const double m = g.rmass[i], I = inertia * m * g.radius[i] * g.radius[i];
+  double speed2 = 0.0, spin2 = 0.0, height = 0.0;
+  for (int a = 0; a < 3; a++) {
+    speed2 += g.v[i][a] * g.v[i][a];
+    spin2 += g.omega[i][a] * g.omega[i][a];
+    height += gravity[a] * g.x[i][a];
+  }
+  return {0.5 * m * speed2 + 0.5 * I * spin2, -m * height};
+}
+
 double grain_energy(const DemGrains &g, double inertia, const double gravity[3]) {
   double energy = 0.0;
-  for (int i = 0; i < g.n; i++) {
-    if (!g.coupled(i)) continue;
-    const double m = g.rmass[i], I = inertia * m * g.radius[i] * g.radius[i];
-    double kinetic = 0.0, spin = 0.0, height = 0.0;
-    for (int a = 0; a < 3; a++) {
-      kinetic += g.v[i][a] * g.v[i][a];
-      spin += g.omega[i][a] * g.omega[i][a];
-      height += gravity[a] * g.x[i][a];
-    }
-    energy += 0.5 * m * kinetic + 0.5 * I * spin - m * height;
-  }
+  for (int i = 0; i < g.n; i++)
+    if (g.coupled(i)) energy += grain_energy_of(g, i, inertia, gravity).total();
   return energy;
 }
 

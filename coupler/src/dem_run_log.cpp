@@ -51,6 +51,7 @@ std::string DemRunLog::summary(bool end_of_run, RezoneLog level, std::int64_t st
   std::string line;
   if (shown && tally.rezones() > 0)
     line = tally.summary_line(end_of_run ? kSummaryRun : kSummaryInterval, step) + "\n";
+  if (end_of_run && tally.rezones() > 0) line += tally.energy_line(kSummaryRun, step) + "\n";
   tally.restart(step + 1);
   return line;
 }

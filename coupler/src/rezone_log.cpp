@@ -57,6 +57,7 @@ void RezoneTally::add(const RezoneReport &r) {
   sum_.mean_carried = r.mean_carried;
   sum_.weight = r.weight;
   sum_.continuum_cells = r.continuum_cells, sum_.hybrid_cells = r.hybrid_cells, sum_.discrete_cells = r.discrete_cells;
+  sum_.grain_energy += r.grain_energy;
   sum_.lightest = std::min(sum_.lightest, r.lightest);
   sum_.heaviest = std::max(sum_.heaviest, r.heaviest);
 }
@@ -71,6 +72,17 @@ std::string RezoneTally::summary_line(const char *what, std::int64_t last_step) 
          " continuum, " + n(s.hybrid_cells) + " hybrid, " + n(s.discrete_cells) +
          " discrete cells; carried mass / solid mass " + general(s.lightest, 3) + " to " + general(s.heaviest, 3) +
          " (mean " + general(s.mean_carried, 4) + ")";
+}
+
+std::string RezoneTally::energy_line(const char *what, std::int64_t last_step) const {
+  auto term = [](const char *name, const GrainEnergy &e) {
+    return std::string(name) + " " + general(e.total(), 6) + " (kinetic " + general(e.kinetic, 6) + ", potential " +
+           general(e.potential, 6) + ")";
+  };
+  const RezoneGrainEnergy &e = sum_.grain_energy;
+  return "fix hybrid/mpm: " + std::string(what) + " " + n(first_) + "-" + n(last_step) +
+         ": the rezones' energy on the grains (J, J/m in 2D): " + term("made", e.made) + ", " +
+         term("removed", e.removed) + ", " + term("corrected", e.corrected) + "; in all " + general(e.total(), 6);
 }
 
 }    // namespace coupler

@@ -154,6 +154,29 @@ TEST(DemRunLog, RezoneLinesAndSummariesFollowTheLogLevel) {
   }
 }
 
+TEST(DemRunLog, TheRunsSummaryEndsWithWhatItsRezonesDidToTheGrainsEnergy) {
+  // two rezones' splits (J): the run's line has their sums, term by term; the thermo intervals'
+  // summaries do not print it, and a run without rezones prints neither
+  const double totals[7] = {1, 2, 3, 4, 5, 6, 7};
+  coupler::DemRunLog log;
+  log.start_run(1);
+  coupler::RezoneReport first = report(1, 10), second = report(5, 4);
+  first.grain_energy.made = {0.5, 0.25}, first.grain_energy.removed = {-2, -1}, first.grain_energy.corrected = {0.125, 0};
+  second.grain_energy.made = {1, 0.75}, second.grain_energy.removed = {-0.5, -4}, second.grain_energy.corrected = {-1, 2};
+  log.rezone(first, true, coupler::RezoneLog::kSummary, totals, totals);
+  log.rezone(second, false, coupler::RezoneLog::kSummary, totals, totals);
+  const std::string interval = log.summary(false, coupler::RezoneLog::kSummary, 10);
+  EXPECT_EQ(lines_of(interval).size(), 1u) << interval;
+  const std::vector<std::string> run = lines_of(log.summary(true, coupler::RezoneLog::kSummary, 30));
+  ASSERT_EQ(run.size(), 2u);
+  EXPECT_EQ(run[1], "fix hybrid/mpm: run of steps 1-30: the rezones' energy on the grains (J, J/m in 2D): made 2.5 "
+                    "(kinetic 1.5, potential 1), removed -7.5 (kinetic -2.5, potential -5), corrected 1.125 (kinetic "
+                    "-0.875, potential 2); in all -3.875");
+  coupler::DemRunLog quiet;
+  quiet.start_run(31);
+  EXPECT_EQ(quiet.summary(true, coupler::RezoneLog::kSummary, 40), "");
+}
+
 TEST(DemRunLog, FixModifyTakesRezoneLogAndTheOraclesKeywordsOnly) {
   coupler::FixOptions o;
   o.adapt_every = 10, o.cell = 0.01;

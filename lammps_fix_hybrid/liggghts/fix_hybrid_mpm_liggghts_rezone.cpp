@@ -257,6 +257,7 @@ coupler::RezonePlan<3> FixHybridMPMLiggghts::rezone_plan(int source, double next
   for (int a = 0; a < 3; a++)
     plan.lo[a] = opt->container_edge(a, 0, domain->boxlo, domain->boxhi),
     plan.hi[a] = opt->container_edge(a, 1, domain->boxlo, domain->boxhi);
+  for (int a = 0; a < 3; a++) plan.gravity[a] = opt->continuum.gravity[a];
   return plan;
 }
 

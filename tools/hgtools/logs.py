@@ -118,6 +118,26 @@ def mpm_ledger(text: str) -> dict[str, float]:
     return out
 
 
+REZONE_ENERGY_RE = re.compile(r"the rezones' energy on the (grains|points) \(J, J/m in 2D\): (.*); in all (\S+)$", re.M)
+REZONE_TERM_RE = re.compile(r"(\w+) (\S+) \(([^)]*)\)")
+
+
+def rezone_energy(text: str, side: str = "grains") -> list[dict]:
+    """What the rezones did to one side's energy, from its lines (J, J/m in 2D): the fix's at the
+    end of each run (side "grains": made, removed, corrected, each with its kinetic and potential
+    part) or the MPM process's at its end ("points": with the elastic part, and rests). One dict
+    per line: {term: {"total": .., "kinetic": .., ...}, ..., "all": the line's sum}."""
+    out = []
+    for found_side, terms, total in REZONE_ENERGY_RE.findall(text):
+        if found_side != side:
+            continue
+        line = {"all": float(total)}
+        for name, value, parts in REZONE_TERM_RE.findall(terms):
+            line[name] = {"total": float(value), **{k: float(v) for k, v in (p.split() for p in parts.split(", "))}}
+        out.append(line)
+    return out
+
+
 def number(pattern: str, text: str) -> float:
     """The first group of the first (multi-line) match of `pattern` in a log, as a number."""
     m = re.search(pattern, text, re.M)

@@ -60,6 +60,7 @@ struct RezoneAtoms {
 /// What a rezone did, over all DEM ranks.
 struct RezoneCounts {
   std::int64_t deleted = 0, made = 0;
+  RezoneGrainEnergy energy;    ///< what it did to the grains' energy, summed over the ranks
 };
 
 /// Everything a rezone needs besides the host's atoms.
@@ -72,6 +73,7 @@ struct RezonePlan {
   GrainRules rules;
   double grain_diameter = 0.0;
   double lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};    ///< the continuum's container
+  double gravity[3] = {0, 0, 0};                  ///< the grains' potential energy (the ledger's split)
 };
 
 /// A rezone's zones, its first round trip (coupler/protocol.hpp): the new zone map and the

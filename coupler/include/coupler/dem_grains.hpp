@@ -8,6 +8,7 @@
 #include <functional>
 #include <vector>
 
+#include "coupler/dem_ledger.hpp"
 #include "coupler/grid_geometry.hpp"
 #include "coupler/protocol.hpp"
 
@@ -36,6 +37,9 @@ struct GrainRules {
 /// Mass, linear momentum and angular momentum about the origin (orbital and spin) of this
 /// rank's grains of the group.
 void grain_totals(const DemGrains &g, double inertia, double out[7]);
+
+/// Kinetic (translation and rotation) and potential energy in gravity g of grain i.
+GrainEnergy grain_energy_of(const DemGrains &g, int i, double inertia, const double gravity[3]);
 
 /// Kinetic (translation and rotation) plus potential energy in gravity g of this rank's grains
 /// of the group (the energy ledger).

@@ -12,6 +12,44 @@
 
 namespace coupler {
 
+/// Kinetic (translation and rotation) and potential energy of some grains (J; J/m in 2D).
+struct GrainEnergy {
+  double kinetic = 0, potential = 0;
+  double total() const { return kinetic + potential; }
+  GrainEnergy &operator+=(const GrainEnergy &o) {
+    kinetic += o.kinetic, potential += o.potential;
+    return *this;
+  }
+  GrainEnergy &operator-=(const GrainEnergy &o) {
+    kinetic -= o.kinetic, potential -= o.potential;
+    return *this;
+  }
+};
+
+/// What rezones did to the grains' energy, by what they did to the grains: made from points
+/// (enrichment), removed (homogenisation) and corrected (the kept and new grains' new share of
+/// their cell's material and rigid velocity increment). The three sum to the ledger's rezone
+/// term (EnergyLedger::rezone, entry 27), as the MPM process's split of the points' side sums to
+/// entry 28.
+struct RezoneGrainEnergy {
+  GrainEnergy made, removed, corrected;
+  double total() const { return made.total() + removed.total() + corrected.total(); }
+  RezoneGrainEnergy &operator+=(const RezoneGrainEnergy &o) {
+    made += o.made, removed += o.removed, corrected += o.corrected;
+    return *this;
+  }
+  static constexpr int kSums = 6;    ///< the doubles the ranks sum (to_array, from_array)
+  void to_array(double out[kSums]) const {
+    out[0] = made.kinetic, out[1] = made.potential, out[2] = removed.kinetic, out[3] = removed.potential;
+    out[4] = corrected.kinetic, out[5] = corrected.potential;
+  }
+  static RezoneGrainEnergy from_array(const double in[kSums]) {
+    RezoneGrainEnergy e;
+    e.made = {in[0], in[1]}, e.removed = {in[2], in[3]}, e.corrected = {in[4], in[5]};
+    return e;
+  }
+};
+
 /// The grains' side of the energy ledger: brackets that follow each other without a gap, each
 /// closed at an exchange or a rezone. Sums over one rank's grains; only their sum over the ranks
 /// means anything (atoms change ranks).

@@ -48,8 +48,9 @@ class DemRunLog {
   std::string rezone(const RezoneReport &report, bool conversion, RezoneLog level, const double before[7],
                      const double after[7]);
   /// The summary line (ending in a newline) of the rezones since the last thermo output
-  /// (`end_of_run` false; not with `quiet`) or of the run's (true), "" if there were none or it is
-  /// not shown; that tally starts again after `step`.
+  /// (`end_of_run` false; not with `quiet`) or of the run's (true, followed by the line of what
+  /// they did to the grains' energy), "" if there were none or it is not shown; that tally starts
+  /// again after `step`.
   std::string summary(bool end_of_run, RezoneLog level, std::int64_t step);
 
   /// The thermo vector's timing entries (kVecTimeCoupling..kVecTimeShare) into `out`: the ranks'

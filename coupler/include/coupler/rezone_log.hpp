@@ -8,6 +8,8 @@
 #include <optional>
 #include <string>
 
+#include "coupler/dem_ledger.hpp"
+
 namespace coupler {
 
 /// How much of the rezones the log shows (keyword rezone_log).
@@ -40,6 +42,7 @@ struct RezoneReport {
   /// the same summed over all grains (mass_drift's sums) after it: above 1 the conversions between
   /// grains and points have lost grain volume (fewer grains carry the material, each heavier)
   double mean_carried = 1.0;
+  RezoneGrainEnergy grain_energy;     ///< what it did to the grains' energy (summed by RezoneTally)
 };
 
 /// The full log's first line of a rezone (without a trailing newline):
@@ -67,6 +70,10 @@ class RezoneTally {
   /// (mean M)"
   /// with <what> "steps" (a thermo interval) or "run of steps"; A the first step, B = last_step.
   std::string summary_line(const char *what, std::int64_t last_step) const;
+  /// "fix hybrid/mpm: <what> A-B: the rezones' energy on the grains (J, J/m in 2D): made E (kinetic
+  /// K, potential P), removed ..., corrected ...; in all T": their RezoneGrainEnergy, whose sum is
+  /// what they added to the ledger's entry 27 over these steps.
+  std::string energy_line(const char *what, std::int64_t last_step) const;
 
  private:
   std::int64_t first_;
