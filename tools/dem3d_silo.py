@@ -30,7 +30,7 @@ import numpy as np
 from hgtools import bed, cli, logs
 from hgtools.bed import PACKING_MARGIN, floor_with_hole
 from hgtools.cache import Settled
-from hgtools.discharge import Discharge, measure
+from hgtools.discharge import DISCHARGE_STAGE, Discharge, measure
 from hgtools.grains import (FLOOR_SPACING, LATTICE_SPACING, covered_fraction, grains_needed, jittered, max_overlap,
                             pour_margin, read_data, write_spheres)
 from hgtools.laws import BEVERLOO_C3D, BEVERLOO_K, G, beverloo_3d
@@ -110,11 +110,12 @@ def prepare(width: float, height: float, orifice: float, d: float, seed: int, ex
             work: Path | None = None, exe: str | None = None, timeout: float = 1800) -> tuple[Path, dict, bool]:
     """The settled silo (data file) and its preparation record, from the cache or prepared
     now with `prep_code`. The orifice is part of the key (it is in the floor), and so are this
-    driver and hgtools/bed.py (they write the initial grains)."""
+    driver and hgtools/bed.py (they write the initial grains), and the deck before its discharge
+    stage."""
     prep_extra = {k: v for k, v in extra.items() if k not in ("tdis", "fstop")}
     cache = Settled.entry("dem3d_silo", f"w{width:g}_h{height:g}_D{orifice:g}_d{d:g}_s{seed}_{prep_code}",
                           dict(w=width, h=height, D=orifice, d=d, seed=seed, code=prep_code, np=np_, **prep_extra),
-                          (FORMS.deck(prep_code), Path(__file__), Path(bed.__file__)), "settled.data",
+                          ((FORMS.deck(prep_code), DISCHARGE_STAGE), Path(__file__), Path(bed.__file__)), "settled.data",
                           cache_dir)
     if use_cache and cache.cached(with_info=True):
         return cache.path, cache.info(), False

@@ -54,7 +54,7 @@ import numpy as np
 from hgtools import cli, logs
 from hgtools.bed import PACKING_MARGIN
 from hgtools.cache import Settled
-from hgtools.discharge import Discharge, measure
+from hgtools.discharge import DISCHARGE_STAGE, Discharge, measure
 from hgtools.grains import covered_fraction, dump_positions, max_overlap, read_dump
 from hgtools.laws import BEVERLOO_C2D, BEVERLOO_K, beverloo_2d  # C: the free-fall arch (see above)
 from hgtools.runner import Forms, workdir
@@ -92,10 +92,11 @@ def packing_fraction(dump: dict, width: float, d: float, margin: float = PACKING
 def settled(width: float, height: float, d: float, seed: int, extra: dict,
             cache_dir: str | Path | None = None) -> Settled:
     """Cache entry of the settled silo. The orifice, tdis, fstop, tout and tdump are not part of
-    the key: the preparation does not depend on them (the orifice is closed)."""
+    the key: the preparation does not depend on them (the orifice is closed); nor is the deck's
+    discharge stage."""
     prep_extra = {k: v for k, v in extra.items() if k not in ("orifice", "tdis", "fstop", "tout", "tdump")}
     return Settled.entry("dem_silo", f"w{width:g}_h{height:g}_d{d:g}_s{seed}",
-                         dict(w=width, h=height, d=d, seed=seed, **prep_extra), (DECK,), "settled.restart",
+                         dict(w=width, h=height, d=d, seed=seed, **prep_extra), ((DECK, DISCHARGE_STAGE),), "settled.restart",
                          cache_dir)
 
 

@@ -12,6 +12,8 @@ from hgtools.logs import records
 TRANSIENT = 0.1              # s after the opening before the steady window starts
 FIT_FMAX = 0.5               # the steady window ends when this fraction of the mass has left
 RATE_BLOCKS = 10             # blocks of the window for the rate's standard error (batch means)
+# the silo decks' (2D, 3D, LIGGGHTS) discharge starts at this line: a settled silo's cache key is the part before it
+DISCHARGE_STAGE = "label           discharge_stage"
 
 
 def walls_far(width: float, orifice: float, d: float) -> bool:
