@@ -252,8 +252,8 @@ coupler::RezonePlan<D> FixHybridMPM::rezone_plan(int source)
   plan.packing = &packing_template<D>();
   plan.rules = grain_rules();
   plan.grain_diameter = opt->continuum.grain_diameter;
-  for (int a = 0; a < 3; a++) plan.lo[a] = container_edge(a, 0), plan.hi[a] = container_edge(a, 1);
-  for (int a = 0; a < 3; a++) plan.gravity[a] = opt->continuum.gravity[a];
+  for (int a = 0; a < 3; a++)
+    plan.lo[a] = container_edge(a, 0), plan.hi[a] = container_edge(a, 1), plan.gravity[a] = opt->continuum.gravity[a];
   return plan;
 }
 

@@ -109,14 +109,12 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
 
   // 3. enrichment (collective): new grains, their sums with the old ones'
   const double inertia = plan.rules.inertia;
-  auto energy_of = [&](const DemGrains &g) {    // this rank's grains of the group
-    GrainEnergy e;
-    for (int i = 0; i < g.n; i++)
-      if (g.coupled(i)) e += grain_energy_of(g, i, inertia, plan.gravity);
-    return e;
-  };
-  RezoneGrainEnergy energy;
-  energy.made -= energy_of(atoms.grains());
+  RezoneGrainEnergy energy;    // this rank's grains of the group; made = after the enrichment - before it
+  {
+    const DemGrains old = atoms.grains();
+    for (int i = 0; i < old.n; i++)
+      if (old.coupled(i)) energy.made -= grain_energy_of(old, i, inertia, plan.gravity);
+  }
   const auto planned = plan_new_grains<D>(grid, cells, sums, atoms.grains(), *plan.packing, plan.rules,
                                           plan.grain_diameter, plan.lo, plan.hi, comm);
   std::int64_t made_local = 0;
@@ -135,10 +133,12 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
 
   // 5. apply them: delete, or scale and add the rigid velocity increment
   DemGrains now = atoms.grains();    // (new grains may have moved the arrays)
-  energy.made += energy_of(now);
   std::vector<GrainEnergy> before(now.n);
   for (int i = 0; i < now.n; i++)
-    if (now.coupled(i)) before[i] = grain_energy_of(now, i, inertia, plan.gravity);
+    if (now.coupled(i)) {
+      before[i] = grain_energy_of(now, i, inertia, plan.gravity);
+      energy.made += before[i];
+    }
   const std::vector<char> remove = apply_corrections<D>(grid, cells, slots, corrections, now, plan.rules);
   std::int64_t deleted_local = 0;
   for (int i = 0; i < now.n; i++) {

@@ -256,8 +256,7 @@ coupler::RezonePlan<3> FixHybridMPMLiggghts::rezone_plan(int source, double next
   plan.grain_diameter = opt->continuum.grain_diameter;
   for (int a = 0; a < 3; a++)
     plan.lo[a] = opt->container_edge(a, 0, domain->boxlo, domain->boxhi),
-    plan.hi[a] = opt->container_edge(a, 1, domain->boxlo, domain->boxhi);
-  for (int a = 0; a < 3; a++) plan.gravity[a] = opt->continuum.gravity[a];
+    plan.hi[a] = opt->container_edge(a, 1, domain->boxlo, domain->boxhi), plan.gravity[a] = opt->continuum.gravity[a];
   return plan;
 }
 
