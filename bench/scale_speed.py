@@ -518,7 +518,8 @@ def front(rows: list[dict], ax) -> None:
     ax.set(xscale="log", yscale="symlog", xlabel="wall time, s", ylabel="|discharge rate error| (%)",
            title="circles: depth; diamonds: depth below the free surface only; triangles: floor touched")
     ax.title.set_fontsize(9)
-    ax.legend(fontsize=8)
+    if ax.lines:    # (an invocation may have no silo at several depths)
+        ax.legend(fontsize=8)
 
 
 def collapse_label(r: dict) -> str:

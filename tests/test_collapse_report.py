@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import os
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -171,3 +172,17 @@ def test_slab_section_shows_each_hybrid_against_its_own_host():
     assert row[3].strip() == "-10.6%" and row[4].strip() == "-4.3%", row
     row = next(line for line in section.splitlines() if "(hybrid_3d.lmp)" in line).split("|")
     assert row[3].strip() == row[4].strip() == "-7.1%", row
+
+
+def test_touched_hybrids_at_depths_in_grain_diameters():
+    """hybrid_touch_<N>d runs the touched hybrid with its continuum N grain diameters below the free
+    surface (the front of error against run time over the zones' depth); --hcell reaches every
+    hybrid; a misspelt run is refused before anything runs."""
+    from collapse_report import D, hybrid_vars, label, run_report
+    assert hybrid_vars("hybrid_touch", 2.0, 0.2, None) == {"hybrid": 2, "htouch": 1}
+    nine = hybrid_vars("hybrid_touch_9d", 2.0, 0.2, 0.0)
+    assert nine == {"hybrid": 2, "htouch": 1, "hdepth": pytest.approx(9 * D), "hcell": 0.0}
+    assert hybrid_vars("hybrid_adaptive_d2", 2.0, 0.2, None)["hdepth"] == pytest.approx(0.04)
+    assert "depth 12.5 d" in label("hybrid_touch_12.5d")
+    with pytest.raises(ValueError, match="hybrid_touch_9"):
+        run_report(Path("/nonexistent/never"), ["hybrid_touch_9"], progress=False)

@@ -11,7 +11,10 @@ Runs (all from the same settled column, except dem_seed):
   dem_seed            the same scene from another packing (seed 2): the reference's own noise
   hybrid_fixed        fix hybrid/mpm with a fixed continuum block in the static wedge (hybrid 1)
   hybrid_adaptive     adaptive zones, the deck's default depth (hybrid 2)
-  hybrid_adaptive_d2  adaptive zones, continuum from 2 cells below the surface
+  hybrid_adaptive_d2  adaptive zones, continuum from 2 deck cells (0.2 L0) below the surface
+  hybrid_touch        adaptive zones, the continuum touching the back wall and the floor (htouch 1)
+  hybrid_touch_<N>d   the same, continuum from N grain diameters below the free surface (e.g.
+                      hybrid_touch_9d): the front of error against run time over the zones' depth
   mpm_drucker_prager  mpm_solver alone, Drucker-Prager
   mpm_mu_i            mpm_solver alone, mu(I)
 With --liggghts, a reduced 3D slab collapse between side walls (tools/dem3d_collapse.py) runs in
@@ -25,7 +28,8 @@ farther front, over H0), the runout (Lf - L0)/L0 (relative difference), the kine
 history (RMS difference of KE(t) over the reference's duration, over the reference's peak; grains
 plus points for the hybrid), and whether the runout lies in the published range (docs/design.md
 section 6). Speedup: the reference's wall time over the
-run's, side by side in this job. Writes <out>/report.md, report.json, error_vs_time.png
+run's, side by side in this job. The hybrids run on the deck's cells (L0/10) unless --hcell says
+otherwise (0: the fix's cells from the grains, as bench/scale_speed.py runs them). Writes <out>/report.md, report.json, error_vs_time.png
 (surface error against wall time, the noise floor as a band), profiles.png and
 kinetic_energy.png (KE against time).
 """
@@ -34,6 +38,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field
@@ -59,8 +64,18 @@ LABELS = {
     "dem": "LAMMPS DEM (reference)", "dem_seed": "LAMMPS DEM, another packing (noise floor)",
     "hybrid_fixed": "hybrid, fixed continuum wedge", "hybrid_adaptive": "hybrid, adaptive zones",
     "hybrid_adaptive_d2": "hybrid, adaptive, depth 2 cells", "mpm_drucker_prager": "MPM Drucker-Prager",
-    "mpm_mu_i": "MPM mu(I)",
+    "mpm_mu_i": "MPM mu(I)", "hybrid_touch": "hybrid, adaptive, walls touched",
 }
+TOUCH_DEPTH = re.compile(r"hybrid_touch_(\d+(?:\.\d+)?)d")    # hybrid_touch_<N>d: depth N grain diameters
+
+
+def known_run(name: str) -> bool:
+    return name in ALL_RUNS or name == "hybrid_touch" or TOUCH_DEPTH.fullmatch(name) is not None
+
+
+def label(name: str) -> str:
+    depth = TOUCH_DEPTH.fullmatch(name)
+    return f"hybrid, adaptive, walls touched, depth {depth.group(1)} d" if depth else LABELS[name]
 
 
 @dataclass
@@ -117,7 +132,7 @@ def dem_outcome(name: str, res, out: Path, points=None) -> Outcome:
         size += f" + {len(points)} points"
         if len(points):       # (a continuum may have turned back into grains whole)
             height = max(height, float(points[:, 1].max()))
-    return Outcome(name, LABELS[name], res.runout, tuple(surface), res.wall_time, size, str(res.steps),
+    return Outcome(name, label(name), res.runout, tuple(surface), res.wall_time, size, str(res.steps),
                    height / res.width, extra={"ms_per_step": 1e3 * res.loop_time / max(res.steps, 1)},
                    kinetic_energy=thermo_kinetic_energy(out / "log.lammps"))
 
@@ -140,22 +155,32 @@ def run_mpm(model: str, aspect: float, width: float, cell: float, out: Path, thr
                    extra={"ms_per_step": 1e3 * wall / figures["steps"]}, kinetic_energy=frames_kinetic_energy(frames))
 
 
-def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: Path) -> Outcome:
+def hybrid_vars(name: str, aspect: float, width: float, hcell: float | None) -> dict:
+    """The deck variables of a hybrid run (input_decks/column_collapse/dem_2d.lmp)."""
+    # the deck's cell is L0/10: "depth 2 cells" is 0.2 L0
+    # the fixed block (y < hy L0) stays below 0.6 H0, in the static wedge of low columns too
+    named = {"hybrid_fixed": {"hy": min(0.7, 0.6 * aspect)}, "hybrid_adaptive": {"hybrid": 2},
+             "hybrid_adaptive_d2": {"hybrid": 2, "hdepth": 0.2 * width}, "hybrid_touch": {"hybrid": 2, "htouch": 1}}
+    depth = TOUCH_DEPTH.fullmatch(name)
+    hvars = {"hybrid": 2, "htouch": 1, "hdepth": float(depth.group(1)) * D} if depth else dict(named[name])
+    if hcell is not None:
+        hvars["hcell"] = hcell
+    return hvars
+
+
+def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: Path,
+            hcell: float | None = None) -> Outcome:
     common = dict(aspect=aspect, width=width, d=D, np_=np_)
     if name in ("dem", "dem_seed"):
         seed = {"dem": 12345, "dem_seed": 2}[name]    # the reference's packing, and another one
         res = run_from_settled(**common, out=out / name, seed=seed)    # timed alone, from the cached column
         return dem_outcome(name, res, out / name)
     if name.startswith("hybrid_"):
-        # the deck's cell is L0/10: "depth 2 cells" is 0.2 L0
-        # the fixed block (y < hy L0) stays below 0.6 H0, in the static wedge of low columns too
-        hvars = {"hybrid_fixed": {"hy": min(0.7, 0.6 * aspect)}, "hybrid_adaptive": {"hybrid": 2},
-                 "hybrid_adaptive_d2": {"hybrid": 2, "hdepth": 0.2 * width}}[name]
-        res = run_dem(**common, out=out / name, hybrid_vars=hvars)
+        res = run_dem(**common, out=out / name, hybrid_vars=hybrid_vars(name, aspect, width, hcell))
         return dem_outcome(name, res, out / name, final_continuum(out / name)[0]["position"])
     if name.startswith("mpm_"):
         return run_mpm(name[4:], aspect, width, cell, out, np_)
-    raise ValueError(f"unknown run '{name}' (known: {', '.join(ALL_RUNS)})")
+    raise ValueError(f"unknown run '{name}' (known: {', '.join(ALL_RUNS)}, hybrid_touch, hybrid_touch_<N>d)")
 
 
 SLAB_ROWS = 5             # the 3D slab's thickness in floor rows of 1.2 d (6 d: 2.4 MPM cells of 2.5 d)
@@ -287,15 +312,17 @@ def plots(runs: list[Outcome], aspect: float, width: float, out: Path) -> None:
 
 def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 0.1, cell: float = 0.005,
                np_: int = 2, liggghts: bool = False, progress: bool = True,
-               command: str = "tools/collapse_report.py", resume: bool = False) -> tuple[list[Outcome], dict | None]:
+               command: str = "tools/collapse_report.py", resume: bool = False,
+               hcell: float | None = None) -> tuple[list[Outcome], dict | None]:
     """Runs the matrix (the reference "dem" first), writes the report and plots into out. Each
     run's outcome is saved as it ends (<out>/<run>.outcome.json); with resume, saved outcomes
     are reused, so an interrupted matrix goes on where it stopped (their wall times stay those
     of the run that made them)."""
     names = ["dem"] + [n for n in names if n != "dem"]
-    unknown = [n for n in names if n not in ALL_RUNS]
+    unknown = [n for n in names if not known_run(n)]
     if unknown:
-        raise ValueError(f"unknown run(s) {', '.join(unknown)} (known: {', '.join(ALL_RUNS)})")
+        raise ValueError(f"unknown run(s) {', '.join(unknown)} (known: {', '.join(ALL_RUNS)}, hybrid_touch, "
+                         "hybrid_touch_<N>d)")
     out = out.resolve()    # the drivers run the codes in other working directories
     out.mkdir(parents=True, exist_ok=True)
     runs, codes = [], None
@@ -306,7 +333,7 @@ def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 
             if resume and saved.exists():
                 runs.append(Outcome(**json.loads(saved.read_text())))
             else:
-                runs.append(run_one(name, aspect, width, cell, np_, out))
+                runs.append(run_one(name, aspect, width, cell, np_, out, hcell))
                 r = runs[-1]
                 saved.write_text(json.dumps(dict(vars(r), surface=[np.asarray(a).tolist() for a in r.surface],
                                                  kinetic_energy=[np.asarray(a).tolist() for a in r.kinetic_energy])))
@@ -347,6 +374,8 @@ def main(argv=None) -> int:
     p.add_argument("--liggghts", action="store_true",
                    help="add the 3D slab: LAMMPS, LIGGGHTS (the noise floor between codes) and the hybrid on each host")
     p.add_argument("--resume", action="store_true", help="reuse the outcomes an earlier call saved in --out")
+    p.add_argument("--hcell", type=float, default=None,
+                   help="the hybrids' MPM cell, m (0: the fix's, from the grains; default the deck's, L0/10)")
     args = p.parse_args(argv)
     if not SOLVER.exists():
         p.error(f"{SOLVER} is not built; run tools/setup.sh")
@@ -354,7 +383,7 @@ def main(argv=None) -> int:
         runs, codes = run_report(args.out, [n.strip() for n in args.runs.split(",") if n.strip()], args.aspect,
                                  args.width, args.cell, args.np_, args.liggghts,
                                  command=" ".join(["tools/collapse_report.py"] + (argv or sys.argv[1:])),
-                                 resume=args.resume)
+                                 resume=args.resume, hcell=args.hcell)
     except ValueError as e:
         p.error(str(e))
     print((args.out / "report.md").read_text())
