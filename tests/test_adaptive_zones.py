@@ -109,7 +109,9 @@ def test_every_handoff_keeps_mass_momentum_and_angular_momentum(tmp_path, hybrid
     # removed ones take theirs, no potential energy without gravity
     split = assert_grain_rezone_split(log, end)
     assert split["made"]["kinetic"] > 0 and split["removed"]["kinetic"] < 0, split
-    assert all(split[term]["potential"] == 0 for term in ("made", "removed", "corrected")), split
+    assert all(split[term]["potential"] == 0 for term in ACTIONS + MECHANISMS), split
+    # the handoffs go both ways: cells turned continuum took grains, cells turned discrete made them
+    assert split["homogenisation"]["kinetic"] < 0 < split["enrichment"]["kinetic"], split
 
 
 def test_grid_chosen_from_the_grains_makes_coarse_points(tmp_path, hybrid_programs):
@@ -182,21 +184,27 @@ def test_rezone_log_sums_the_rezones_at_thermo_output(tmp_path, hybrid_programs)
     assert [(s["kind"], s["rezones"]) for s in rezone_summaries(logs["quiet"])] == [("run of steps", len(oracle_steps))]
 
 
+ACTIONS = ("made", "removed", "corrected")                  # what a rezone did to the grains
+MECHANISMS = ("enrichment", "homogenisation", "repair")     # by the cells' zone change
+
+
 def assert_grain_rezone_split(log: str, end: dict) -> dict:
     """The fix's end-of-run lines split the grains' side of the rezones into grains made, removed
-    and corrected (kinetic and potential); over the runs of the log they sum to the ledger's
+    and corrected (kinetic and potential), and again by the cells' zone change (enrichment,
+    homogenisation, repair); each split sums to the line's total; over the runs of the log they sum to the ledger's
     entry 27 at its end (`end`, the last thermo row's ledger), to round-off of the energy scale.
     Returns the split summed over the runs."""
     runs = rezone_energy(log, "grains")
     assert runs, "no line of the rezones' energy on the grains in the log"
     total = {term: {part: sum(r[term][part] for r in runs) for part in ("total", "kinetic", "potential")}
-             for term in ("made", "removed", "corrected")}
-    for r in runs:    # each line's terms add up to its sum (6 digits printed) and to their parts
-        terms = [r[t] for t in ("made", "removed", "corrected")]
-        scale = max(abs(t["total"]) for t in terms) + 1e-300
-        assert abs(sum(t["total"] for t in terms) - r["all"]) <= 2e-5 * scale, r
-        for t in terms:
-            assert t["total"] == pytest.approx(t["kinetic"] + t["potential"], abs=2e-5 * scale), r
+             for term in ACTIONS + MECHANISMS}
+    for r in runs:    # each line's terms add up to its sum (6 digits printed) and to their parts, by
+        for split in (ACTIONS, MECHANISMS):    # what they did to the grains and by the cells' zone change
+            terms = [r[t] for t in split]
+            scale = max(abs(t["total"]) for t in terms) + 1e-300
+            assert abs(sum(t["total"] for t in terms) - r["all"]) <= 2e-5 * scale, (split, r)
+            for t in terms:
+                assert t["total"] == pytest.approx(t["kinetic"] + t["potential"], abs=2e-5 * scale), r
     # 6 significant digits a term: the sum matches the ledger to their precision
     scale = max(abs(total[t]["total"]) for t in total)
     assert sum(r["all"] for r in runs) == pytest.approx(end["rezones (grains)"], abs=2e-5 * scale), (runs, end)

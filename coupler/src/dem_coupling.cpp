@@ -110,10 +110,15 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
   // 3. enrichment (collective): new grains, their sums with the old ones'
   const double inertia = plan.rules.inertia;
   RezoneGrainEnergy energy;    // this rank's grains of the group; made = after the enrichment - before it
+  std::vector<GrainEnergy> initial;    // each old grain's energy before the rezone (made grains follow them)
   {
     const DemGrains old = atoms.grains();
+    initial.resize(old.n);
     for (int i = 0; i < old.n; i++)
-      if (old.coupled(i)) energy.made -= grain_energy_of(old, i, inertia, plan.gravity);
+      if (old.coupled(i)) {
+        initial[i] = grain_energy_of(old, i, inertia, plan.gravity);
+        energy.made -= initial[i];
+      }
   }
   const auto planned = plan_new_grains<D>(grid, cells, sums, atoms.grains(), *plan.packing, plan.rules,
                                           plan.grain_diameter, plan.lo, plan.hi, comm);
@@ -140,16 +145,26 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
       energy.made += before[i];
     }
   const std::vector<char> remove = apply_corrections<D>(grid, cells, slots, corrections, now, plan.rules);
+  std::map<std::uint64_t, int> mechanism_of;    // cell -> RezoneMechanism, as the MPM process judged it
+  for (const auto &gc : corrections) mechanism_of[gc.cell] = gc.mechanism;
   std::int64_t deleted_local = 0;
   for (int i = 0; i < now.n; i++) {
     if (!now.coupled(i)) continue;
+    GrainEnergy after;    // (none if removed)
     if (remove[i]) {
       deleted_local++;
       energy.removed -= before[i];
     } else {
-      energy.corrected += grain_energy_of(now, i, inertia, plan.gravity);
+      after = grain_energy_of(now, i, inertia, plan.gravity);
+      energy.corrected += after;
       energy.corrected -= before[i];
     }
+    const std::int64_t k = slot_of_cell_at<D>(grid, now.x[i], slots);
+    const auto found = k < 0 ? mechanism_of.end() : mechanism_of.find(cells[k].cell);
+    if (found == mechanism_of.end() || found->second < 0 || found->second >= kMechanisms) continue;    // unchanged
+    GrainEnergy &tally = energy.by_mechanism[found->second];
+    tally += after;
+    if (i < static_cast<int>(initial.size())) tally -= initial[i];
   }
   atoms.remove(remove);
 

@@ -163,6 +163,11 @@ TEST(DemRunLog, TheRunsSummaryEndsWithWhatItsRezonesDidToTheGrainsEnergy) {
   coupler::RezoneReport first = report(1, 10), second = report(5, 4);
   first.grain_energy.made = {0.5, 0.25}, first.grain_energy.removed = {-2, -1}, first.grain_energy.corrected = {0.125, 0};
   second.grain_energy.made = {1, 0.75}, second.grain_energy.removed = {-0.5, -4}, second.grain_energy.corrected = {-1, 2};
+  // the same changes by the cells' zone change (each rezone's sum is its own)
+  first.grain_energy.by_mechanism[coupler::kEnrichment] = {0.5, 0.25};
+  first.grain_energy.by_mechanism[coupler::kHomogenisation] = {-1.875, -1};
+  second.grain_energy.by_mechanism[coupler::kHomogenisation] = {-1.5, -1.25};
+  second.grain_energy.by_mechanism[coupler::kRepair] = {1, 0};
   log.rezone(first, true, coupler::RezoneLog::kSummary, totals, totals);
   log.rezone(second, false, coupler::RezoneLog::kSummary, totals, totals);
   const std::string interval = log.summary(false, coupler::RezoneLog::kSummary, 10);
@@ -171,7 +176,9 @@ TEST(DemRunLog, TheRunsSummaryEndsWithWhatItsRezonesDidToTheGrainsEnergy) {
   ASSERT_EQ(run.size(), 2u);
   EXPECT_EQ(run[1], "fix hybrid/mpm: run of steps 1-30: the rezones' energy on the grains (J, J/m in 2D): made 2.5 "
                     "(kinetic 1.5, potential 1), removed -7.5 (kinetic -2.5, potential -5), corrected 1.125 (kinetic "
-                    "-0.875, potential 2); in all -3.875");
+                    "-0.875, potential 2); by the cells' zone change: enrichment 0.75 (kinetic 0.5, potential "
+                    "0.25), homogenisation -5.625 (kinetic -3.375, potential -2.25), repair 1 (kinetic 1, potential "
+                    "0); in all -3.875");
   coupler::DemRunLog quiet;
   quiet.start_run(31);
   EXPECT_EQ(quiet.summary(true, coupler::RezoneLog::kSummary, 40), "");

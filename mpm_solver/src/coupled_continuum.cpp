@@ -236,6 +236,7 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     MovingCell m;
     m.plan.cell = c;
     m.plan.zone = next[c];
+    m.mechanism = coupler::rezone_mechanism(zones_[c], next[c]);
     m.plan.grain_weight = next[c] == coupler::kHybrid ? cs.grain_weight : 1.0;
     m.points.moments.cell = c;
     moving_.push_back(std::move(m));
@@ -377,10 +378,12 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   std::vector<std::vector<std::size_t>> own(moving_.size());  // the points each cell keeps or made
   // a rigid correction of points, its change of their energy tallied under `tally` (rezone_energy_)
   auto correct_tallied = [&](const std::vector<std::size_t>& members, const coupler::RigidCorrection<D>& fix,
-                             typename RezoneEnergy::Parts& tally) {
+                             typename RezoneEnergy::Parts& tally, std::size_t k) {
     const auto before = energy_parts(members);
     correct_points(members, fix);
-    tally += energy_parts(members) - before;
+    const auto change = energy_parts(members) - before;
+    tally += change;
+    rezone_energy_.by_mechanism[moving_[k].mechanism] += change;
   };
   auto make_points = [&](std::size_t k, double part, float label) {
     const MovingCell& m = moving_[k];
@@ -399,7 +402,9 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
       remove.push_back(0);
       ++points_made_;
     }
-    rezone_energy_.made += energy_parts({own[k].begin() + static_cast<std::ptrdiff_t>(first), own[k].end()});
+    const auto made = energy_parts({own[k].begin() + static_cast<std::ptrdiff_t>(first), own[k].end()});
+    rezone_energy_.made += made;
+    rezone_energy_.by_mechanism[m.mechanism] += made;
   };
   // the points' weight label is their zone's share (1 for points a discrete cell keeps)
   auto label_of = [&](const MovingCell& m) {
@@ -420,7 +425,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     if (!(s.points > 0)) continue;
     if (P.moments.mass > 0 && !thin) {
       correct_tallied(m.members, coupler::rigid_correction<D>(P, total[k].scaled(s.points), centre),
-                      rezone_energy_.corrected);
+                      rezone_energy_.corrected, k);
       for (std::size_t p : m.members) pts.weight[p] = label_of(m);
       own[k] = m.members;
     } else if (total[k].mass > 0) {
@@ -477,7 +482,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
       return coupler::rigid_correction<D>(now, target, centre);
     };
     auto give = [&](const std::vector<std::size_t>& members, const coupler::CellMoments<D>& part) {
-      correct_tallied(members, correction(members, part), rezone_energy_.rests);
+      correct_tallied(members, correction(members, part), rezone_energy_.rests, k);
     };
     // Of the reaches whose carriers hold enough mass, the one whose correction creates the least
     // kinetic energy: moving a rest keeps its angular momentum exactly by spinning the carriers
@@ -523,7 +528,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
           // there and lost their deformation, and the run made and removed them again and again.
           for (std::size_t p : m.members) remove[p] = 0, pts.weight[p] = 1.0f;
           points_removed_ -= static_cast<std::int64_t>(m.members.size());
-          correct_tallied(m.members, coupler::rigid_correction<D>(m.points, left, centre), rezone_energy_.rests);
+          correct_tallied(m.members, coupler::rigid_correction<D>(m.points, left, centre), rezone_energy_.rests, k);
           own[k] = m.members;
         } else {
           make_points(k, remainder, 1.0f);
@@ -544,6 +549,7 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
     const Vec<D> centre = coupler::cell_center<D>(geometry, coupler::cell_coords<D>(geometry, m.plan.cell));
     coupler::GrainCorrection<D> gc;
     gc.cell = m.plan.cell;
+    gc.mechanism = m.mechanism;
     gc.weight = m.plan.grain_weight;
     if (split[k].grains <= 0) gc.remove = 1;
     else {
@@ -558,9 +564,15 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   // of the oracle's steps once the material rests) leaves it to the solver's periodic sort
   if (points_made_ > 0 || points_removed_ > 0) {
     std::vector<std::size_t> removed;
+    std::vector<std::size_t> removed_by[coupler::kMechanisms];    // (only moving cells' points are removed)
+    for (std::size_t k = 0; k < moving_.size(); ++k)
+      for (std::size_t p : moving_[k].members)
+        if (remove[p]) removed_by[moving_[k].mechanism].push_back(p);
     for (std::size_t p = 0; p < remove.size(); ++p)
       if (remove[p]) removed.push_back(p);
     rezone_energy_.removed -= energy_parts(removed);
+    for (int mechanism = 0; mechanism < coupler::kMechanisms; ++mechanism)
+      rezone_energy_.by_mechanism[mechanism] -= energy_parts(removed_by[mechanism]);
     remove_points(pts, remove);
     solver_.sort_points_by_cell();
   }

@@ -189,6 +189,10 @@ TEST(CoupledRezone, TheRezonesEnergyOnThePointsSplitsByWhatTheyDid) {
   EXPECT_EQ(e.removed.total(), 0);
   EXPECT_EQ(e.corrected.total(), 0);
   EXPECT_EQ(e.rests.total(), 0);
+  // by the cells' zone change: grains turned into points (discrete to continuum) homogenise
+  EXPECT_EQ(e.by_mechanism[coupler::kHomogenisation].total(), made);
+  EXPECT_EQ(e.by_mechanism[coupler::kEnrichment].total(), 0);
+  EXPECT_EQ(e.by_mechanism[coupler::kRepair].total(), 0);
 
   std::vector<std::int8_t> zones(coupler::num_cells(grid), coupler::kDiscrete);
   for (int i = 3; i <= 8; ++i)
@@ -204,6 +208,10 @@ TEST(CoupledRezone, TheRezonesEnergyOnThePointsSplitsByWhatTheyDid) {
   EXPECT_EQ(e.made.total(), made);
   const double scale = std::abs(made) + std::abs(e.removed.total()) + std::abs(e.rests.total());
   EXPECT_NEAR(e.total(), continuum.rezone_ledger(), 1e-12 * scale);
+  // the middle cell's turn to discrete is an enrichment: its points' removal and the rest it gave
+  EXPECT_EQ(e.by_mechanism[coupler::kHomogenisation].total(), made);
+  EXPECT_NEAR(e.by_mechanism[coupler::kEnrichment].total(), e.removed.total() + e.rests.total(), 1e-12 * scale);
+  EXPECT_EQ(e.by_mechanism[coupler::kRepair].total(), 0);
 }
 
 // A discrete cell whose points find no other points within reach to take them keeps them,

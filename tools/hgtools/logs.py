@@ -125,8 +125,9 @@ REZONE_TERM_RE = re.compile(r"(\w+) (\S+) \(([^)]*)\)")
 def rezone_energy(text: str, side: str = "grains") -> list[dict]:
     """What the rezones did to one side's energy, from its lines (J, J/m in 2D): the fix's at the
     end of each run (side "grains": made, removed, corrected, each with its kinetic and potential
-    part) or the MPM process's at its end ("points": with the elastic part, and rests). One dict
-    per line: {term: {"total": .., "kinetic": .., ...}, ..., "all": the line's sum}."""
+    part) or the MPM process's at its end ("points": with the elastic part, and rests); each also
+    by the cells' zone change (enrichment, homogenisation, repair: the same sum). One dict per
+    line: {term: {"total": .., "kinetic": .., ...}, ..., "all": the line's sum}."""
     out = []
     for found_side, terms, total in REZONE_ENERGY_RE.findall(text):
         if found_side != side:

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "coupler/protocol.hpp"
+#include "coupler/zones.hpp"
 
 namespace coupler {
 
@@ -30,25 +31,32 @@ struct GrainEnergy {
 /// (enrichment), removed (homogenisation) and corrected (the kept and new grains' new share of
 /// their cell's material and rigid velocity increment). The three sum to the ledger's rezone
 /// term (EnergyLedger::rezone, entry 27), as the MPM process's split of the points' side sums to
-/// entry 28.
+/// entry 28. The same change again by the cells' RezoneMechanism (zones.hpp: enrichment,
+/// homogenisation, repair), which the MPM process tallies for the points alike: the two sides'
+/// sums per mechanism are what each mechanism did to grains and points together.
 struct RezoneGrainEnergy {
   GrainEnergy made, removed, corrected;
+  GrainEnergy by_mechanism[kMechanisms];
   double total() const { return made.total() + removed.total() + corrected.total(); }
   RezoneGrainEnergy &operator+=(const RezoneGrainEnergy &o) {
     made += o.made, removed += o.removed, corrected += o.corrected;
+    for (int m = 0; m < kMechanisms; ++m) by_mechanism[m] += o.by_mechanism[m];
     return *this;
   }
-  static constexpr int kSums = 6;    ///< the doubles the ranks sum (to_array, from_array)
+  static constexpr int kSums = 2 * (3 + kMechanisms);    ///< the doubles the ranks sum (to_array, from_array)
   void to_array(double out[kSums]) const {
-    out[0] = made.kinetic, out[1] = made.potential, out[2] = removed.kinetic, out[3] = removed.potential;
-    out[4] = corrected.kinetic, out[5] = corrected.potential;
+    const GrainEnergy *terms[] = {&made, &removed, &corrected, &by_mechanism[0], &by_mechanism[1], &by_mechanism[2]};
+    for (int t = 0; t < kSums / 2; ++t) out[2 * t] = terms[t]->kinetic, out[2 * t + 1] = terms[t]->potential;
   }
   static RezoneGrainEnergy from_array(const double in[kSums]) {
     RezoneGrainEnergy e;
-    e.made = {in[0], in[1]}, e.removed = {in[2], in[3]}, e.corrected = {in[4], in[5]};
+    GrainEnergy *terms[] = {&e.made, &e.removed, &e.corrected, &e.by_mechanism[0], &e.by_mechanism[1],
+                            &e.by_mechanism[2]};
+    for (int t = 0; t < kSums / 2; ++t) *terms[t] = {in[2 * t], in[2 * t + 1]};
     return e;
   }
 };
+static_assert(kMechanisms == 3, "RezoneGrainEnergy's arrays list the mechanisms one by one");
 
 /// The grains' side of the energy ledger: brackets that follow each other without a gap, each
 /// closed at an exchange or a rezone. Sums over one rank's grains; only their sum over the ranks

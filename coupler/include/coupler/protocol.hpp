@@ -240,7 +240,7 @@ template <int D>
 struct GrainCorrection {
   std::uint64_t cell = 0;
   std::int32_t remove = 0;             ///< 1: the grains become points (deleted)
-  std::int32_t pad = 0;
+  std::int32_t mechanism = 0;          ///< the cell's RezoneMechanism (zones.hpp), for the energy ledger
   double weight = 1;                   ///< their new weight label
   double mass_factor = 1;
   double velocity[D] = {};

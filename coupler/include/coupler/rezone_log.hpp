@@ -71,8 +71,9 @@ class RezoneTally {
   /// with <what> "steps" (a thermo interval) or "run of steps"; A the first step, B = last_step.
   std::string summary_line(const char *what, std::int64_t last_step) const;
   /// "fix hybrid/mpm: <what> A-B: the rezones' energy on the grains (J, J/m in 2D): made E (kinetic
-  /// K, potential P), removed ..., corrected ...; in all T": their RezoneGrainEnergy, whose sum is
-  /// what they added to the ledger's entry 27 over these steps.
+  /// K, potential P), removed ..., corrected ...; by the cells' zone change: enrichment ...,
+  /// homogenisation ..., repair ...; in all T": their RezoneGrainEnergy, whose sum (of either
+  /// split) is what they added to the ledger's entry 27 over these steps.
   std::string energy_line(const char *what, std::int64_t last_step) const;
 
  private:

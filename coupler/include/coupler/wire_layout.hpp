@@ -13,7 +13,7 @@
 
 namespace coupler::wire_layout {
 
-static_assert(kProtocolVersion == 14, "the layouts below are those of protocol 14: update them with the version");
+static_assert(kProtocolVersion == 15, "the layouts below are those of protocol 15: update them with the version");
 
 #define COUPLER_WIRE_SIZE(T, size)                                                                     \
   static_assert(std::is_standard_layout_v<T> && std::is_trivially_copyable_v<T>,                      \
@@ -195,7 +195,7 @@ COUPLER_WIRE_FIELD(GrainSums<2>, solid, 192, 192);
 COUPLER_WIRE_SIZE(GrainCorrection<2>, 72);
 COUPLER_WIRE_FIELD(GrainCorrection<2>, cell, 0, 8);
 COUPLER_WIRE_FIELD(GrainCorrection<2>, remove, 8, 4);
-COUPLER_WIRE_FIELD(GrainCorrection<2>, pad, 12, 4);
+COUPLER_WIRE_FIELD(GrainCorrection<2>, mechanism, 12, 4);
 COUPLER_WIRE_FIELD(GrainCorrection<2>, weight, 16, 8);
 COUPLER_WIRE_FIELD(GrainCorrection<2>, mass_factor, 24, 8);
 COUPLER_WIRE_FIELD(GrainCorrection<2>, velocity, 32, 16);
@@ -233,7 +233,7 @@ COUPLER_WIRE_FIELD(GrainSums<3>, solid, 384, 384);
 COUPLER_WIRE_SIZE(GrainCorrection<3>, 104);
 COUPLER_WIRE_FIELD(GrainCorrection<3>, cell, 0, 8);
 COUPLER_WIRE_FIELD(GrainCorrection<3>, remove, 8, 4);
-COUPLER_WIRE_FIELD(GrainCorrection<3>, pad, 12, 4);
+COUPLER_WIRE_FIELD(GrainCorrection<3>, mechanism, 12, 4);
 COUPLER_WIRE_FIELD(GrainCorrection<3>, weight, 16, 8);
 COUPLER_WIRE_FIELD(GrainCorrection<3>, mass_factor, 24, 8);
 COUPLER_WIRE_FIELD(GrainCorrection<3>, velocity, 32, 24);

@@ -17,6 +17,26 @@ namespace coupler {
 
 enum Zone : std::int8_t { kDiscrete = 0, kHybrid = 1, kContinuum = 2 };
 
+/// What a rezone does to a cell, by its zone change: enrichment (towards discrete: the grains'
+/// share of its material rises), homogenisation (towards continuum: it falls), or a repair (the
+/// zone stays; the cell held material of the wrong kind, or starved or light grains). Both sides
+/// tally the rezones' energy by it (docs/fix_hybrid_mpm.md, "Energy ledger").
+enum RezoneMechanism : std::int32_t { kRepair = 0, kEnrichment = 1, kHomogenisation = 2 };
+inline constexpr int kMechanisms = 3;
+
+inline RezoneMechanism rezone_mechanism(int zone_before, int zone_after) {
+  return zone_after < zone_before ? kEnrichment : zone_after > zone_before ? kHomogenisation : kRepair;
+}
+
+inline const char* mechanism_name(int mechanism) {
+  switch (mechanism) {
+    case kRepair: return "repair";
+    case kEnrichment: return "enrichment";
+    case kHomogenisation: return "homogenisation";
+    default: return "unknown";
+  }
+}
+
 inline const char* zone_name(int zone) {
   switch (zone) {
     case kDiscrete: return "discrete";

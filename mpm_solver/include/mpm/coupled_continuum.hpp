@@ -11,6 +11,7 @@
 #include "coupler/conversion.hpp"
 #include "coupler/protocol.hpp"
 #include "coupler/support_force.hpp"
+#include "coupler/zones.hpp"
 #include "mpm/output.hpp"
 #include "mpm/solver.hpp"
 
@@ -96,6 +97,8 @@ class CoupledContinuum {
       Parts operator-(const Parts& o) const { return Parts(*this) -= o; }
     };
     Parts made, removed, corrected, rests;
+    /// the same changes by the cells' zone change (a rest by its giving cell's)
+    Parts by_mechanism[coupler::kMechanisms];
     double total() const { return made.total() + removed.total() + corrected.total() + rests.total(); }
   };
   const RezoneEnergy& rezone_energy() const { return rezone_energy_; }
@@ -111,6 +114,7 @@ class CoupledContinuum {
   /// A planned cell of a rezone: its plan, its points (indices) and their sums.
   struct MovingCell {
     coupler::RezoneCell<D> plan;
+    coupler::RezoneMechanism mechanism = coupler::kRepair;    ///< by its zone change
     coupler::BodySums<D> points;
     std::vector<std::size_t> members;
   };
