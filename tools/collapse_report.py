@@ -67,6 +67,7 @@ LABELS = {
     "mpm_mu_i": "MPM mu(I)", "hybrid_touch": "hybrid, adaptive, walls touched",
 }
 TOUCH_DEPTH = re.compile(r"hybrid_touch_(\d+(?:\.\d+)?)d")    # hybrid_touch_<N>d: depth N grain diameters
+KNOWN_RUNS = ", ".join(ALL_RUNS + ["hybrid_touch", "hybrid_touch_<N>d"])    # for the errors
 
 
 def known_run(name: str) -> bool:
@@ -180,7 +181,7 @@ def run_one(name: str, aspect: float, width: float, cell: float, np_: int, out: 
         return dem_outcome(name, res, out / name, final_continuum(out / name)[0]["position"])
     if name.startswith("mpm_"):
         return run_mpm(name[4:], aspect, width, cell, out, np_)
-    raise ValueError(f"unknown run '{name}' (known: {', '.join(ALL_RUNS)}, hybrid_touch, hybrid_touch_<N>d)")
+    raise ValueError(f"unknown run '{name}' (known: {KNOWN_RUNS})")
 
 
 SLAB_ROWS = 5             # the 3D slab's thickness in floor rows of 1.2 d (6 d: 2.4 MPM cells of 2.5 d)
@@ -321,8 +322,7 @@ def run_report(out: Path, names: list[str], aspect: float = 2.0, width: float = 
     names = ["dem"] + [n for n in names if n != "dem"]
     unknown = [n for n in names if not known_run(n)]
     if unknown:
-        raise ValueError(f"unknown run(s) {', '.join(unknown)} (known: {', '.join(ALL_RUNS)}, hybrid_touch, "
-                         "hybrid_touch_<N>d)")
+        raise ValueError(f"unknown run(s) {', '.join(unknown)} (known: {KNOWN_RUNS})")
     out = out.resolve()    # the drivers run the codes in other working directories
     out.mkdir(parents=True, exist_ok=True)
     runs, codes = [], None

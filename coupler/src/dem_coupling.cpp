@@ -144,9 +144,9 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
       before[i] = grain_energy_of(now, i, inertia, plan.gravity);
       energy.made += before[i];
     }
-  const std::vector<char> remove = apply_corrections<D>(grid, cells, slots, corrections, now, plan.rules);
-  std::map<std::uint64_t, int> mechanism_of;    // cell -> RezoneMechanism, as the MPM process judged it
-  for (const auto &gc : corrections) mechanism_of[gc.cell] = gc.mechanism;
+  std::vector<signed char> mechanism;    // each grain's cell's, as the MPM process judged it
+  const std::vector<char> remove =
+      apply_corrections<D>(grid, cells, slots, corrections, now, plan.rules, &mechanism);
   std::int64_t deleted_local = 0;
   for (int i = 0; i < now.n; i++) {
     if (!now.coupled(i)) continue;
@@ -159,10 +159,8 @@ StepOutcome move_material(DemSession &session, MPI_Comm comm, const RezonePlan<D
       energy.corrected += after;
       energy.corrected -= before[i];
     }
-    const std::int64_t k = slot_of_cell_at<D>(grid, now.x[i], slots);
-    const auto found = k < 0 ? mechanism_of.end() : mechanism_of.find(cells[k].cell);
-    if (found == mechanism_of.end() || found->second < 0 || found->second >= kMechanisms) continue;    // unchanged
-    GrainEnergy &tally = energy.by_mechanism[found->second];
+    if (mechanism[i] < 0) continue;    // not in a moving cell: unchanged
+    GrainEnergy &tally = energy.by_mechanism[mechanism[i]];
     tally += after;
     if (i < static_cast<int>(initial.size())) tally -= initial[i];
   }

@@ -7,6 +7,7 @@
 
 #include "coupler/conversion.hpp"
 #include "coupler/tuning.hpp"
+#include "coupler/zones.hpp"
 
 namespace coupler {
 namespace {
@@ -354,10 +355,11 @@ void add_new_grain(std::map<std::size_t, GrainSums<D>> &sums, const std::vector<
 template <int D>
 std::vector<char> apply_corrections(const GridGeometry<D> &grid, const std::vector<RezoneCell<D>> &cells,
                                     const CellSlots &slots, const std::vector<GrainCorrection<D>> &corrections,
-                                    DemGrains &g, const GrainRules &rules) {
+                                    DemGrains &g, const GrainRules &rules, std::vector<signed char> *mechanisms) {
   std::map<std::uint64_t, const GrainCorrection<D> *> correction_of;
   for (const auto &gc : corrections) correction_of[gc.cell] = &gc;
   std::vector<char> remove(g.n, 0);
+  if (mechanisms) mechanisms->assign(g.n, -1);
   for (int i = 0; i < g.n; i++) {
     if (!g.coupled(i)) continue;
     const std::int64_t k = slot_of_cell_at<D>(grid, g.x[i], slots);
@@ -365,6 +367,8 @@ std::vector<char> apply_corrections(const GridGeometry<D> &grid, const std::vect
     const auto it = correction_of.find(cells[k].cell);
     if (it == correction_of.end()) continue;
     const GrainCorrection<D> &gc = *it->second;
+    if (mechanisms && gc.mechanism >= 0 && gc.mechanism < kMechanisms)    // (the ledger's only use of it)
+      (*mechanisms)[i] = static_cast<signed char>(gc.mechanism);
     if (gc.remove) {
       remove[i] = 1;
       continue;
@@ -399,7 +403,7 @@ std::vector<char> apply_corrections(const GridGeometry<D> &grid, const std::vect
                                  const PlannedGrain<D> &, const GrainRules &);                                     \
   template std::vector<char> apply_corrections<D>(const GridGeometry<D> &, const std::vector<RezoneCell<D>> &,     \
                                                   const CellSlots &, const std::vector<GrainCorrection<D>> &,      \
-                                                  DemGrains &, const GrainRules &);
+                                                  DemGrains &, const GrainRules &, std::vector<signed char> *);
 HYBRID_DEM_REZONE(2)
 HYBRID_DEM_REZONE(3)
 

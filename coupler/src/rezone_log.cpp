@@ -82,10 +82,8 @@ std::string RezoneTally::energy_line(const char *what, std::int64_t last_step) c
   const RezoneGrainEnergy &e = sum_.grain_energy;
   return "fix hybrid/mpm: " + std::string(what) + " " + n(first_) + "-" + n(last_step) +
          ": the rezones' energy on the grains (J, J/m in 2D): " + term("made", e.made) + ", " +
-         term("removed", e.removed) + ", " + term("corrected", e.corrected) + "; by the cells' zone change: " +
-         term(mechanism_name(kEnrichment), e.by_mechanism[kEnrichment]) + ", " +
-         term(mechanism_name(kHomogenisation), e.by_mechanism[kHomogenisation]) + ", " +
-         term(mechanism_name(kRepair), e.by_mechanism[kRepair]) + "; in all " + general(e.total(), 6);
+         term("removed", e.removed) + ", " + term("corrected", e.corrected) + "; " +
+         mechanism_terms(e.by_mechanism, term) + "; in all " + general(e.total(), 6);
 }
 
 }    // namespace coupler

@@ -436,10 +436,7 @@ std::string rezone_energy_text(const Energy& e) {
   };
   return "the rezones' energy on the points (J, J/m in 2D): " + term("made", e.made) + ", " +
          term("removed", e.removed) + ", " + term("corrected", e.corrected) + ", " + term("rests", e.rests) +
-         "; by the cells' zone change: " + term(coupler::mechanism_name(coupler::kEnrichment), e.by_mechanism[coupler::kEnrichment]) +
-         ", " + term(coupler::mechanism_name(coupler::kHomogenisation), e.by_mechanism[coupler::kHomogenisation]) + ", " +
-         term(coupler::mechanism_name(coupler::kRepair), e.by_mechanism[coupler::kRepair]) + "; in all " +
-         format_digits(e.total(), 4);
+         "; " + coupler::mechanism_terms(e.by_mechanism, term) + "; in all " + format_digits(e.total(), 4);
 }
 
 /// Serves the coupled run until Finish (returns 0), an AbortNote (returns 1) or a failure it

@@ -563,16 +563,15 @@ std::vector<coupler::GrainCorrection<D>> CoupledContinuum<D>::complete_rezone(
   // new points go to their cells' places in the order; a rezone that made or removed none (most
   // of the oracle's steps once the material rests) leaves it to the solver's periodic sort
   if (points_made_ > 0 || points_removed_ > 0) {
-    std::vector<std::size_t> removed;
-    std::vector<std::size_t> removed_by[coupler::kMechanisms];    // (only moving cells' points are removed)
-    for (std::size_t k = 0; k < moving_.size(); ++k)
-      for (std::size_t p : moving_[k].members)
-        if (remove[p]) removed_by[moving_[k].mechanism].push_back(p);
-    for (std::size_t p = 0; p < remove.size(); ++p)
-      if (remove[p]) removed.push_back(p);
-    rezone_energy_.removed -= energy_parts(removed);
-    for (int mechanism = 0; mechanism < coupler::kMechanisms; ++mechanism)
-      rezone_energy_.by_mechanism[mechanism] -= energy_parts(removed_by[mechanism]);
+    std::vector<std::size_t> removed[coupler::kMechanisms];    // only moving cells' points are removed
+    for (const MovingCell& m : moving_)
+      for (std::size_t p : m.members)
+        if (remove[p]) removed[m.mechanism].push_back(p);
+    for (int mechanism = 0; mechanism < coupler::kMechanisms; ++mechanism) {
+      const auto parts = energy_parts(removed[mechanism]);
+      rezone_energy_.removed -= parts;
+      rezone_energy_.by_mechanism[mechanism] -= parts;
+    }
     remove_points(pts, remove);
     solver_.sort_points_by_cell();
   }

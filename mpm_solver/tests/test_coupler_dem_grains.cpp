@@ -7,6 +7,7 @@
 
 #include "coupler/dem_grains.hpp"
 #include "coupler/dem_rezone.hpp"
+#include "coupler/zones.hpp"
 
 namespace {
 
@@ -133,13 +134,17 @@ TEST(DemRezone, SumsOfTheMovingCellsAndTheirCorrections) {
 
   // cell c0 becomes points; cell c1's grains take half their solid mass and a rigid increment
   std::vector<coupler::GrainCorrection<2>> corrections(2);
-  corrections[0].cell = c0, corrections[0].remove = 1;
+  corrections[0].cell = c0, corrections[0].remove = 1, corrections[0].mechanism = coupler::kHomogenisation;
   corrections[1].cell = c1, corrections[1].weight = 0.5, corrections[1].mass_factor = 0.5;
+  corrections[1].mechanism = coupler::kRepair;
   corrections[1].velocity[0] = 1.0, corrections[1].omega[0] = 2.0;
   corrections[1].centre[0] = 0.025, corrections[1].centre[1] = 0.015;
   auto view = a.view();
-  const auto remove = coupler::apply_corrections<2>(gr, cells, slots, corrections, view, rules());
+  std::vector<signed char> mechanisms;
+  const auto remove = coupler::apply_corrections<2>(gr, cells, slots, corrections, view, rules(), &mechanisms);
   EXPECT_EQ(remove, (std::vector<char>{1, 0, 0}));
+  // each grain's cell's mechanism as its correction names it; none for the frozen grain
+  EXPECT_EQ(mechanisms, (std::vector<signed char>{coupler::kHomogenisation, coupler::kRepair, -1}));
   EXPECT_DOUBLE_EQ(a.rmass[1], 0.5 * 1.44);
   EXPECT_DOUBLE_EQ(a.weight[1], 0.5);
   // dv = velocity + omega x (x - centre) = (1, 0) + 2 (-(0.012 - 0.015), 0.022 - 0.025)

@@ -77,10 +77,12 @@ void add_new_grain(std::map<std::size_t, GrainSums<D>> &sums, const std::vector<
 /// The MPM process's corrections applied to this rank's grains of the group: grains of removed
 /// cells are flagged (the host deletes them), the others take their cell's rigid velocity
 /// increment, their new mass (mass_factor times their solid mass) and weight. Returns the
-/// flags (one per atom).
+/// flags (one per atom). With `mechanisms`, also each atom's cell's RezoneMechanism as the
+/// correction names it (-1 where no correction reached the atom, or the name is none).
 template <int D>
 std::vector<char> apply_corrections(const GridGeometry<D> &grid, const std::vector<RezoneCell<D>> &cells,
                                     const CellSlots &slots, const std::vector<GrainCorrection<D>> &corrections,
-                                    DemGrains &g, const GrainRules &rules);
+                                    DemGrains &g, const GrainRules &rules,
+                                    std::vector<signed char> *mechanisms = nullptr);
 
 }    // namespace coupler

@@ -37,6 +37,17 @@ inline const char* mechanism_name(int mechanism) {
   }
 }
 
+/// "by the cells' zone change: enrichment ..., homogenisation ..., repair ...", each term as
+/// `term(name, parts)` writes it: the part of both sides' rezone energy lines that
+/// hgtools.logs.rezone_energy reads by name.
+template <class Parts, class Term>
+std::string mechanism_terms(const Parts (&by_mechanism)[kMechanisms], Term&& term) {
+  std::string text = "by the cells' zone change: ";
+  for (const int m : {kEnrichment, kHomogenisation, kRepair})
+    text += term(mechanism_name(m), by_mechanism[m]) + (m == kRepair ? "" : ", ");
+  return text;
+}
+
 inline const char* zone_name(int zone) {
   switch (zone) {
     case kDiscrete: return "discrete";
