@@ -575,6 +575,13 @@ int serve_loop(coupler::Link& link, const coupler::Hello& hello, const CoupledOp
                    " exchange(s); " + std::to_string(built->solver().points().size()) + " material points");
       say(opt, ledger.summary());
       say(opt, rezone_energy_text(built->rezone_energy()));
+      if (const auto& f = built->field_rule_tally(); f.mass > 0)
+        say(opt, "pic regime over the exchanges, by the grains' mass at the shared nodes: share 1 (quasi-static) " +
+                     format_digits(100 * f.quasi_static / f.mass, 3) + " %, 0 (flowing) " +
+                     format_digits(100 * f.flowing / f.mass, 3) + " %, between " +
+                     format_digits(100 * (f.mass - f.quasi_static - f.flowing) / f.mass, 3) + " %; mean share " +
+                     format_digits(f.share / f.mass, 3) + ", applied at the agreement's closing " +
+                     format_digits(f.applied / f.mass, 3));
       link.mark(coupler::Link::State::kFinished);
       return 0;
     } else {

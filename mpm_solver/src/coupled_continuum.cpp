@@ -1,5 +1,6 @@
 #include "mpm/coupled_continuum.hpp"
 
+#include <cstdlib>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -152,10 +153,9 @@ std::vector<coupler::RezoneCell<D>> CoupledContinuum<D>::plan_rezone(
     kinetic[point_cell[p]] += 0.5 * pts.mass[p] * pts.v[p].squaredNorm();
   }
 
-  // still material (the oracle's measure of rest, coupler::material_still: below kRestSpeed
-  // sqrt(g d); without gravity only empty cells are still)
-  const double rest_speed =
-      coupler::kRestSpeed * std::sqrt(Eigen::Map<const Eigen::Vector3d>(cs.gravity).norm() * cs.grain_diameter);
+  // still material (the oracle's measure of rest, coupler::material_still; without gravity only
+  // empty cells are still)
+  const double rest_speed = this->rest_speed();
   std::vector<double> material_mass(n);
   for (std::size_t c = 0; c < n; ++c) material_mass[c] = grain_mass[c] + point_mass[c];
   const std::vector<std::uint8_t> still = coupler::material_still(kinetic, material_mass, rest_speed);
@@ -614,8 +614,15 @@ void CoupledContinuum<D>::advance_to(double time) {
 }
 
 template <int D>
+double CoupledContinuum<D>::rest_speed() const {
+  const auto& cs = hello_.continuum;
+  return coupler::kRestSpeed * std::sqrt(Eigen::Map<const Eigen::Vector3d>(cs.gravity).norm() * cs.grain_diameter);
+}
+
+template <int D>
 std::vector<double> CoupledContinuum<D>::touched_field_shares() {
-  // mass-weighted over the points of the current substep's P2G: sum_p N_ip m_p share(I_p) / sum_p N_ip m_p
+  // mass-weighted over the points of the current substep's P2G: sum_p N_ip m_p share_p / sum_p N_ip m_p,
+  // share_p from the point's inertial number and its speed (coupler/flow_regime.hpp)
   std::vector<double> share(touched_.size(), 0.0), mass(touched_.size(), 0.0);
   const auto& pts = solver_.points();
   const Grid<D>& grid = solver_.grid();
@@ -638,10 +645,12 @@ std::vector<double> CoupledContinuum<D>::touched_field_shares() {
     }
   }
   const double d = hello_.continuum.grain_diameter, rho = hello_.continuum.grain_density;
+  const double rest_speed = this->rest_speed();  // without gravity only material at rest is still
   for (std::size_t p = 0; p < pts.size(); ++p) {
     const coupler::QuadraticStencil<D> stencil(grid.to_cell_units(pts.x[p]));
     if (!reaching_base_[geometry.index(stencil.base)]) continue;
-    const double q = coupler::field_share(coupler::inertial_number<D>(pts.C[p], pts.stress[p], d, rho));
+    const double q = coupler::field_share(coupler::inertial_number<D>(pts.C[p], pts.stress[p], d, rho)) *
+                     coupler::still_share(pts.v[p].norm(), rest_speed);
     coupler::for_each_stencil_node<D>(stencil, geometry, [&](std::size_t k, double w, const auto&) {
       const std::int64_t t = touched_slot_[k];
       if (t < 0) return;
@@ -759,7 +768,15 @@ std::vector<std::vector<coupler::NodeUpdate>> CoupledContinuum<D>::agree(
   // step ran a collapse out 7.6 % short on the mean of three packings, its surface 3.1-3.4 % of H0
   // off, where every 10 was within the runs' spread (docs/design.md 5.3).
   std::vector<double> shares = field_shares ? touched_field_shares() : std::vector<double>{};
-  for (double& share : shares) share *= closing;
+  for (std::size_t t = 0; t < shares.size(); ++t) {
+    const double m = dem_mass_[touched_[t]];
+    field_rule_.mass += m;
+    field_rule_.quasi_static += shares[t] >= 1.0 ? m : 0.0;
+    field_rule_.flowing += shares[t] <= 0.0 ? m : 0.0;
+    field_rule_.share += m * shares[t];
+    shares[t] *= closing;
+    field_rule_.applied += m * shares[t];
+  }
   std::vector<std::vector<coupler::NodeUpdate>> replies(per_rank.size());
   for (std::size_t r = 0; r < per_rank.size(); ++r) {
     replies[r].resize(per_rank[r].size());

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <utility>
 #include <vector>
 
 #include "coupler/conversion.hpp"
@@ -545,16 +546,18 @@ TEST(CoupledRezone, ZonesOfABedAtRestAreHeldWhenItsSurfaceRises) {
 // agreement closes over the interval T, 1 - exp(-T / agreement_time) (1 with agreement_time 0), at
 // every node its points reach, corner nodes included (the points within a stencil of them); a node
 // beyond their reach answers 0; the same block in simple shear without pressure (free: I infinite)
-// answers 0.
+// answers 0, and so does the block sliding without shear (I = 0, but not still: without gravity
+// the rest speed is 0).
 TEST(CoupledRezone, FieldSharesFollowTheFlowRegimeOfThePoints) {
   constexpr double kInterval = 1e-5;  // s, between the exchanges below
   for (const double agreement_time : {0.0, 4 * kInterval})
-  for (const double shear : {0.0, 20.0}) {
+  for (const auto& [shear, slide] : {std::pair{0.0, 0.0}, std::pair{20.0, 0.0}, std::pair{0.0, 0.05}}) {
     coupler::Hello hello = square_box();
     hello.continuum.agreement_time = agreement_time;
     mpm::CoupledContinuum<2> continuum(hello);
     const auto& grid = static_cast<const coupler::GridGeometry<2>&>(continuum.solver().grid());
-    continuum_block(continuum, 0.8 * kSolidContent, [&](int j) { return Eigen::Vector2d(shear * kCell * (j - 5.5), 0.0); });
+    continuum_block(continuum, 0.8 * kSolidContent,
+                    [&, shear = shear, slide = slide](int j) { return Eigen::Vector2d(slide + shear * kCell * (j - 5.5), 0.0); });
     auto node_at = [&](double x, double y) { return node_nearest(grid, x, y); };
     // the centre, the lower corner, the upper corner (reached only by the corner points' stencils,
     // at their far end), and a node two cells out of the block
@@ -569,11 +572,12 @@ TEST(CoupledRezone, FieldSharesFollowTheFlowRegimeOfThePoints) {
       continuum.complete_step();
     }
     const double closing = agreement_time > 0 ? 1.0 - std::exp(-kInterval / agreement_time) : 1.0;
-    const double inside = shear > 0 ? 0.0 : closing;
+    const double inside = shear > 0 || slide > 0 ? 0.0 : closing;
     for (int n = 0; n < 3; ++n)  // the block's centre, its corners
-      EXPECT_NEAR(replies[0][n].field_share, inside, 1e-15) << "node " << n << ", shear " << shear
-                                                           << ", agreement time " << agreement_time;
-    EXPECT_EQ(replies[0][3].field_share, 0.0) << "shear " << shear << ", agreement time " << agreement_time;
+      EXPECT_NEAR(replies[0][n].field_share, inside, 1e-15) << "node " << n << ", shear " << shear << ", slide "
+                                                           << slide << ", agreement time " << agreement_time;
+    EXPECT_EQ(replies[0][3].field_share, 0.0) << "shear " << shear << ", slide " << slide
+                                              << ", agreement time " << agreement_time;
   }
 }
 

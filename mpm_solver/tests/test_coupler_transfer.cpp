@@ -150,4 +150,13 @@ TEST(CouplerFlowRegime, InertialNumberAndFieldShare) {
   EXPECT_EQ(coupler::field_share(coupler::kFlowingInertialNumber), 0.0);
   EXPECT_EQ(coupler::field_share(HUGE_VAL), 0.0);
   EXPECT_LT(coupler::field_share(4e-3), coupler::field_share(2e-3));
+  // the still share: 1 up to the rest speed, 0 from kStillSpeeds times it, log-linear between
+  EXPECT_EQ(coupler::still_share(0.0, 1e-3), 1.0);
+  EXPECT_EQ(coupler::still_share(1e-3, 1e-3), 1.0);
+  EXPECT_NEAR(coupler::still_share(std::sqrt(coupler::kStillSpeeds) * 1e-3, 1e-3), 0.5, 1e-12);
+  EXPECT_EQ(coupler::still_share(coupler::kStillSpeeds * 1e-3, 1e-3), 0.0);
+  EXPECT_LT(coupler::still_share(4e-3, 1e-3), coupler::still_share(2e-3, 1e-3));
+  // without a rest speed (no gravity) only material at rest is still
+  EXPECT_EQ(coupler::still_share(0.0, 0.0), 1.0);
+  EXPECT_EQ(coupler::still_share(1e-9, 0.0), 0.0);
 }

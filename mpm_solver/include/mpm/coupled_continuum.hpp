@@ -102,6 +102,15 @@ class CoupledContinuum {
     double total() const { return made.total() + removed.total() + corrected.total() + rests.total(); }
   };
   const RezoneEnergy& rezone_energy() const { return rezone_energy_; }
+
+  /// pic regime's shares over the run's exchanges, weighted by the grains' mass at the nodes
+  /// (each exchange's m_dem): how much of the coupled grains' mass took the field rule whole
+  /// (share 1, quasi-static), none of it (0, flowing) or in part, and the mean share before and
+  /// after the agreement's closing. Tells where a run's grains are held to the continuum's field.
+  struct FieldRuleTally {
+    double mass = 0, quasi_static = 0, flowing = 0, share = 0, applied = 0;
+  };
+  const FieldRuleTally& field_rule_tally() const { return field_rule_; }
   /// The continuum's rezone term of the energy ledger: the points' energy the rezones changed.
   double rezone_ledger() const { return ledger_.rezone; }
 
@@ -191,9 +200,13 @@ class CoupledContinuum {
   std::vector<double> dem_mass_;      ///< scratch: DEM node mass, touched nodes only
   std::vector<Vec<D>> dem_momentum_;
   std::vector<std::size_t> touched_;
-  /// The field shares of the touched nodes (touched_ order), from the points' inertial numbers.
+  /// The speed below which material is still: kRestSpeed sqrt(g d) (0 without gravity).
+  double rest_speed() const;
+  /// The field shares of the touched nodes (touched_ order), from the points' inertial numbers
+  /// and speeds.
   std::vector<double> touched_field_shares();
   std::vector<std::uint8_t> reaching_base_;  ///< scratch of touched_field_shares, all 0 between calls
+  FieldRuleTally field_rule_;
   std::vector<std::int64_t> touched_slot_;  ///< node -> index in touched_, -1 if untouched
   double interval_ = 0;               ///< time since the previous exchange, s
   std::vector<coupler::SupportNode<D>> support_;  ///< each node's support force until the next exchange
