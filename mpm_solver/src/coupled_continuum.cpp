@@ -1,6 +1,5 @@
 #include "mpm/coupled_continuum.hpp"
 
-#include <cstdlib>
 #include <algorithm>
 #include <cmath>
 #include <limits>
