@@ -490,8 +490,8 @@ def write(args, rows: list[dict]) -> None:
              "packing; the noise floor is the DEM from another packing against it (same measure). The hybrid "
              "runs with the fix's defaults of its row's date (adaptive zones; the grain update pic 0 before "
              "2026-11-29, pic regime with its share per exchange on 2026-11-29, at the agreement's rate since "
-             "2026-12-01, only where the material is also still since 2026-12-07) and the decks' material, a variant's rows (deck variables in parentheses after the scene) with "
-             "those set; rows with a packing come from each packing's own DEM. The silos' compaction: their "
+             "2026-12-01, only where the material is also still since 2026-12-07) and the decks' material, a "
+             "variant's rows (deck variables in parentheses after the scene) with those set; rows with a packing come from each packing's own DEM. The silos' compaction: their "
              "material below 40 d over the DEM's, 0.2-0.8 s after the opening (in parentheses the other packing's "
              "DEM's). The 2D silos: "
              + "; ".join(f"{k}, {v['label']}" for k, v in SILOS.items()) + ".", ""]

@@ -578,6 +578,16 @@ TEST(CoupledRezone, FieldSharesFollowTheFlowRegimeOfThePoints) {
                                                            << slide << ", agreement time " << agreement_time;
     EXPECT_EQ(replies[0][3].field_share, 0.0) << "shear " << shear << ", slide " << slide
                                               << ", agreement time " << agreement_time;
+    // the run's tally, by the grains' mass at the nodes over both exchanges: at rest, three of the
+    // four equal nodes take the field rule whole and the one out of reach none; sliding, none does
+    const auto& tally = continuum.field_rule_tally();
+    EXPECT_NEAR(tally.mass, 2 * 4 * 1e-6, 1e-18);
+    if (shear > 0) continue;  // its first exchange's points carry no shear yet
+    const double whole = slide > 0 ? 0.0 : 0.75;
+    EXPECT_NEAR(tally.quasi_static / tally.mass, whole, 1e-12) << "slide " << slide;
+    EXPECT_NEAR(tally.flowing / tally.mass, 1 - whole, 1e-12) << "slide " << slide;
+    EXPECT_NEAR(tally.share / tally.mass, whole, 1e-12) << "slide " << slide;
+    EXPECT_NEAR(tally.applied / tally.mass, whole * closing, 1e-12) << "slide " << slide;
   }
 }
 

@@ -40,13 +40,18 @@ double inertial_number(const Eigen::Matrix<double, D, D>& L, const Eigen::Matrix
   return shear_rate * grain_diameter * std::sqrt(grain_density / pressure);
 }
 
+/// 1 at or below `full`, 0 at or above `none`, linear in log x between: the field rule's share
+/// along a measure of the flow, so that neighbouring nodes change rule smoothly.
+inline double log_linear_share(double x, double full, double none) {
+  if (!(x > full)) return 1.0;
+  if (x >= none) return 0.0;
+  return std::log(none / x) / std::log(none / full);
+}
+
 /// Share of the field rule in a hybrid grain's update where the material has inertial number I:
 /// 1 when quasi-static, 0 when flowing, log-linear between.
 inline double field_share(double inertial_number) {
-  if (!(inertial_number > kQuasiStaticInertialNumber)) return 1.0;
-  if (inertial_number >= kFlowingInertialNumber) return 0.0;
-  return std::log(kFlowingInertialNumber / inertial_number) /
-         std::log(kFlowingInertialNumber / kQuasiStaticInertialNumber);
+  return log_linear_share(inertial_number, kQuasiStaticInertialNumber, kFlowingInertialNumber);
 }
 
 /// Share of the field rule by how still the material is: 1 at or below rest_speed, 0 at or above
@@ -58,9 +63,7 @@ inline double field_share(double inertial_number) {
 /// happens where the material is nearly still; a flow moves at 0.1-1 sqrt(g d).
 inline constexpr double kStillSpeeds = 10.0;
 inline double still_share(double speed, double rest_speed) {
-  if (!(speed > rest_speed)) return 1.0;
-  if (!(speed < kStillSpeeds * rest_speed)) return 0.0;
-  return std::log(kStillSpeeds * rest_speed / speed) / std::log(kStillSpeeds);
+  return log_linear_share(speed, rest_speed, kStillSpeeds * rest_speed);
 }
 
 }  // namespace coupler
