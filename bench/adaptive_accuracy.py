@@ -64,15 +64,30 @@ from silo_flow_field import dem_states, dem_timestep, hybrid_states, mass_below 
 D = 0.002
 REFERENCE_SEED = 12345                          # the packing of the decks and the tests
 OTHER_SEED = 2                                  # the reference packing's noise floor
-EXCHANGES = (1, 5, 10, 20)                      # at the oracle interval ORACLE_DEFAULT
+EXCHANGES = (1, 5, 10, 20, "auto")              # at the oracle interval ORACLE_DEFAULT
 ORACLES = (100, 300, 1000)                      # at the exchange interval EXCHANGE_DEFAULT
-EXCHANGE_DEFAULT, ORACLE_DEFAULT = 10, 100      # the decks' defaults
+# the 2D decks' defaults with adaptive zones (every auto, the fix's default for them, since 2026-12-07:
+# the continuum's stable substep, 36-46 DEM steps in these scenes; every 10 before)
+EXCHANGE_DEFAULT, ORACLE_DEFAULT = "auto", 100
+NUMERICS_3D = {"collapse_3d": (10, 100), "silo_3d": (20, 200)}    # the 3D decks' own (exchange, oracle) steps
+
+
+def exchange_interval(text: str):
+    """An --exchanges value: a number of DEM steps, or auto (the fix's every auto)."""
+    return text if text == "auto" else int(text)
+
+
+def interval_order(every) -> tuple:
+    """Rows sorted by exchange interval, auto after the numbers."""
+    return (1, 0) if every == "auto" else (0, every or 0)
 
 
 def numerics(exchanges, oracles) -> list[tuple[int, int]]:
     """Each exchange interval at the default oracle interval (the nearest multiple of it above, as
-    the oracle runs right after an exchange), each oracle interval at the default exchange interval."""
-    pairs = [(e, -(-ORACLE_DEFAULT // e) * e) for e in exchanges] + [(EXCHANGE_DEFAULT, o) for o in oracles]
+    the oracle runs right after an exchange; with auto the fix rounds it up), each oracle interval at the
+    default exchange interval."""
+    pairs = [(e, ORACLE_DEFAULT if e == "auto" else -(-ORACLE_DEFAULT // e) * e) for e in exchanges] + \
+        [(EXCHANGE_DEFAULT, o) for o in oracles]
     return list(dict.fromkeys(pairs))
 
 
@@ -201,9 +216,12 @@ def compaction(states, reference) -> float:
     return float(np.mean(m[inside] / np.interp(t[inside], t_ref, m_ref)) - 1) if inside.any() else float("nan")
 
 
-def frame_every(dem_out: Path, every: int) -> int:
-    """Exchanges between the hybrid's MPM frames for one every COMPACTION_EVERY s, at the DEM's step."""
-    return max(1, round(COMPACTION_EVERY / (dem_timestep(dem_out) * every)))
+def frame_every(dem_out: Path, every) -> int:
+    """Exchanges between the hybrid's MPM frames for one every COMPACTION_EVERY s, at the DEM's step.
+    With every auto the interval is known only once the run starts; taking the oracle's steps for it
+    (more than the fix chooses in these scenes) gives frames at least that often."""
+    steps = ORACLE_DEFAULT if every == "auto" else every
+    return max(1, round(COMPACTION_EVERY / (dem_timestep(dem_out) * steps)))
 
 
 def silo_2d(work: Path, np_: int, quick: bool, pairs, seeds, silo: str = SILO_DEFAULT, variants=({},)) -> list[dict]:
@@ -260,8 +278,8 @@ def collapse_3d(work: Path, np_: int) -> list[dict]:
     # adaptive zones with the depth of the 2D collapse's (3 cells; the deck's default hdepth is
     # one cell, for the fixed block, and adaptive zones need depth > band)
     hyb = run("hybrid", out=work / "c3_hybrid", extra_vars={"walls": 1, "hmode": 2, "hdepth": 0.015}, **common)
-    return [dict(scene="collapse_3d", grains=ref.grains, aspect=ref.aspect, exchange_every=EXCHANGE_DEFAULT,
-                 oracle_every=ORACLE_DEFAULT, runout_error=hyb.runout / ref.runout - 1, surface_error=None,
+    return [dict(scene="collapse_3d", grains=ref.grains, aspect=ref.aspect, exchange_every=NUMERICS_3D["collapse_3d"][0],
+                 oracle_every=NUMERICS_3D["collapse_3d"][1], runout_error=hyb.runout / ref.runout - 1, surface_error=None,
                  ke_error=None, rate_error=None, steps_ratio=hyb.collapse_steps / ref.collapse_steps,
                  noise_floor=other.runout / ref.runout - 1, noise_floor_is="LIGGGHTS",
                  **ledger(work / "c3_hybrid" / "log.txt"), dem_value=ref.runout,
@@ -274,8 +292,8 @@ def silo_3d(work: Path, np_: int) -> list[dict]:
     ref = run("lammps", np_=np_, out=work / "s3_lammps")
     other = run("liggghts", np_=np_, out=work / "s3_liggghts")
     hyb = run("hybrid", np_=np_, out=work / "s3_hybrid")
-    return [dict(scene="silo_3d", grains=ref.grains, aspect=None, exchange_every=EXCHANGE_DEFAULT,
-                 oracle_every=ORACLE_DEFAULT, runout_error=None, surface_error=None, ke_error=None,
+    return [dict(scene="silo_3d", grains=ref.grains, aspect=None, exchange_every=NUMERICS_3D["silo_3d"][0],
+                 oracle_every=NUMERICS_3D["silo_3d"][1], runout_error=None, surface_error=None, ke_error=None,
                  rate_error=hyb.rate / ref.rate - 1, steps_ratio=None, noise_floor=other.rate / ref.rate - 1,
                  rate_error_se=rate_ratio_se(hyb, ref), noise_floor_se=rate_ratio_se(other, ref),
                  noise_floor_is="LIGGGHTS", **ledger(work / "s3_hybrid" / "log.txt"),
@@ -358,9 +376,9 @@ def main() -> int:
     ap.add_argument("--scenes", default="collapse_2d,silo_2d,collapse_3d,silo_3d",
                     help="comma-separated: collapse_2d, silo_2d, collapse_3d, silo_3d")
     ap.add_argument("--exchanges", default=",".join(map(str, EXCHANGES)),
-                    help="exchange intervals to run (at the default oracle interval)")
+                    help="exchange intervals to run, steps or auto (at the default oracle interval; '' for none)")
     ap.add_argument("--oracles", default=",".join(map(str, ORACLES)),
-                    help="oracle intervals to run (at the default exchange interval)")
+                    help="oracle intervals to run (at the default exchange interval; '' for none)")
     ap.add_argument("--seeds", default=str(REFERENCE_SEED),
                     help=f"packings of the 2D scenes, comma-separated (the reference {REFERENCE_SEED} first)")
     ap.add_argument("--aspects", default="2,0.5", help="aspect ratios of collapse_2d (2 and/or 0.5)")
@@ -381,7 +399,7 @@ def main() -> int:
     if unknown:
         ap.error(f"unknown scene(s) {', '.join(sorted(unknown))}")
     pairs = [(EXCHANGE_DEFAULT, ORACLE_DEFAULT)] if args.quick else \
-        numerics([int(v) for v in args.exchanges.split(",")], [int(v) for v in args.oracles.split(",")])
+        numerics([exchange_interval(v) for v in args.exchanges.split(",") if v], [int(v) for v in args.oracles.split(",") if v])
     width = {2.0: 0.05 if args.quick else 0.1, 0.5: 0.1 if args.quick else 0.2}
     seeds = [int(v) for v in args.seeds.split(",")]
     aspects = [float(v) for v in args.aspects.split(",")]
@@ -480,7 +498,7 @@ def write(args, rows: list[dict]) -> None:
     stamp = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     order = {name: k for k, name in enumerate(SCENE_ORDER)}
     rows = sorted(rows, key=lambda r: (order.get(r["scene"].split(" ")[0], len(order)), silo_of(r) or "", -(r.get("aspect") or 0),
-                                       r.get("exchange_every") or 0, r.get("oracle_every") or 0,
+                                       interval_order(r.get("exchange_every")), r.get("oracle_every") or 0,
                                        r.get("seed") != REFERENCE_SEED, r.get("seed") or 0))
     runs = sorted({(r.get("date", stamp), r.get("command", command(args))) for r in rows})
     lines = ["# Adaptive hybrid against pure LAMMPS DEM: accuracy and independence of the numerics", "",

@@ -230,3 +230,15 @@ def test_a_hybrid_run_that_fails_is_its_own_row_and_the_scenes_other_rows_stay(m
     rerun = [silo(2, -0.01, "deep", "new")]
     assert bench.merge(merged, rerun) == [r for r in merged if r is not bad] + rerun
     assert bad in bench.merge(merged, [silo(3, 0.0, "deep", "new")]), "another run's rerun keeps the failure"
+
+
+def test_every_auto_is_an_exchange_interval_at_the_default_oracle_and_sorts_after_the_numbers():
+    """The decks' default with adaptive zones is the fix's every auto; the fix rounds the oracle's steps
+    up to a multiple of the interval it chooses, so auto runs at the default oracle interval as given."""
+    pairs = bench.numerics([bench.exchange_interval(v) for v in "1,20,auto".split(",")], [300])
+    assert pairs == [(1, 100), (20, 100), ("auto", 100), (bench.EXCHANGE_DEFAULT, 300)]
+    assert bench.EXCHANGE_DEFAULT == "auto"
+    with pytest.raises(ValueError):
+        bench.exchange_interval("automatic")
+    order = sorted(["auto", 20, 1, 5], key=bench.interval_order)
+    assert order == [1, 5, 20, "auto"]

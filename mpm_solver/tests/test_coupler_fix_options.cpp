@@ -322,6 +322,24 @@ TEST(FixOptions, EveryAutoIsTheContinuumsStableSubstepInDemSteps) {
   EXPECT_EQ(stiff.every, static_cast<int>(std::floor(substep / 10 / dt)));
 }
 
+// Moving zones exchange once per continuum substep unless the fix line says otherwise; fixed zones
+// keep every step (their rows were measured so), and an explicit interval is kept and checked.
+TEST(FixOptions, AdaptiveZonesExchangeEveryContinuumSubstepByDefault) {
+  auto o = parse("cell 0.01186 adaptive 100");
+  EXPECT_TRUE(o.every_auto);
+  o = parse("cell 0.01186 adaptive 100 every 10");
+  EXPECT_FALSE(o.every_auto);
+  EXPECT_EQ(o.every, 10);
+  o = parse("cell 0.01186 continuum core");
+  EXPECT_FALSE(o.every_auto);
+  EXPECT_EQ(o.every, 1);
+  // the default interval is resolved at the first run and rounds the oracle's steps up to a multiple
+  o = parse("cell 0.01186 adaptive 100 youngs 3.3527e6 poisson 0.3283 grain_density 2500 critical_packing 0.7118");
+  coupler::resolve_exchange_interval(o, 2.632e-6);
+  EXPECT_GT(o.every, 30);
+  EXPECT_EQ(o.adapt_every % o.every, 0);
+}
+
 // The zone oracle runs after the exchanges of its steps once grains became points, never after the
 // run's last step (both hosts ask FixOptions::oracle_after)
 TEST(FixOptions, OracleRunsAfterItsExchangesButNotAtTheEndOfARun) {

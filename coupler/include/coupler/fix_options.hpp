@@ -34,6 +34,7 @@ struct FixOptions {
   int model = kModelDruckerPrager;
   int every = 1;                  ///< exchange every this many steps
   bool every_auto = false;        ///< keyword `every auto`: `every` from the continuum's stable step at the first run
+                                  ///< (the default with adaptive zones)
   int hybrid_width = 2;           ///< cells of hybrid zone inside the continuum regions' border
   int adapt_every = 0;            ///< the zone oracle every this many steps (0 = fixed zones)
   int grain_type = 0;             ///< atom type of grains made from points (0 = the group's smallest)
