@@ -462,8 +462,9 @@ FixOptions parse_fix_options(const std::vector<std::string> &words, int dimensio
   // Moving zones exchange once per continuum substep unless told otherwise: the MPM process never
   // steps past an exchange, so a shorter interval only splits its stable substep into several
   // (the 80k-disk silo every 10: four substeps where one would do, 8.2x faster than LAMMPS
-  // instead of 10.1x), and the adaptive collapse and silos keep their accuracy at it
-  // (bench/results/adaptive_accuracy.md, docs/design.md section 7.3).
+  // instead of 10.1x), and the 50 d collapse and the silos keep their accuracy at it
+  // (bench/results/adaptive_accuracy.md; a band in a fast surface flow wants a shorter
+  // interval, docs/design.md sections 5.2 and 7.3).
   if (o.adaptive() && !every_given) o.every_auto = true;
   if (o.adaptive() && !o.every_auto && o.adapt_every % o.every != 0)
     illegal("keyword 'adaptive' (" + std::to_string(o.adapt_every) + " steps) must be a multiple of 'every' (" +
