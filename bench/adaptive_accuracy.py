@@ -66,8 +66,10 @@ REFERENCE_SEED = 12345                          # the packing of the decks and t
 OTHER_SEED = 2                                  # the reference packing's noise floor
 EXCHANGES = (1, 5, 10, 20, "auto")              # at the oracle interval ORACLE_DEFAULT
 ORACLES = (100, 300, 1000)                      # at the exchange interval EXCHANGE_DEFAULT
-# the 2D decks' defaults with adaptive zones (every auto, the fix's default for them, since 2026-12-07:
-# the continuum's stable substep, 36-46 DEM steps in these scenes; every 10 before)
+# the 2D decks' defaults with adaptive zones and untouched walls (every auto, the fix's default for
+# them, since 2026-12-07: the continuum's stable substep, 36-46 DEM steps in these scenes; every 10
+# before). The collapse deck keeps every 10 with htouch 1, but a row passes its interval explicitly:
+# a variant with htouch=1 runs at the row's interval, as its label says
 EXCHANGE_DEFAULT, ORACLE_DEFAULT = "auto", 100
 NUMERICS_3D = {"collapse_3d": (10, 100), "silo_3d": (20, 200)}    # the 3D decks' own (exchange, oracle) steps
 
